@@ -1,0 +1,1 @@
+//! Evidence simulation and the paper's experiments.

@@ -1,0 +1,1 @@
+//! The instance GraphSPN of a map (the paper's Alg. 1).

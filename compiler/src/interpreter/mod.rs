@@ -1,0 +1,1 @@
+//! The exact reference evaluator of an [`crate::spn::Spn`]: log-likelihood, marginals, MPE.

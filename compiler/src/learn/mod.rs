@@ -1,0 +1,1 @@
+//! Template SPN structure generation, EM training and the model file.

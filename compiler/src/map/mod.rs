@@ -1,0 +1,123 @@
+//! Topological maps: places joined by navigable edges.
+//!
+//! A [`TopoMap`] is an undirected petgraph graph without parallel edges or
+//! self-loops. Node indices `0..n` are the *place order*: the variable order of
+//! every SPN built for the map. Loaders keep places sorted by id.
+
+use petgraph::graph::{NodeIndex, UnGraph};
+use serde::{Deserialize, Serialize};
+
+/// Index of a class in a [`ClassSet`].
+pub type ClassId = u16;
+
+/// User-facing id of a place (the COLD node id, or any id of a JSON map).
+pub type PlaceId = u32;
+
+/// The semantic classes a place can take, by name.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ClassSet {
+    names: Vec<String>,
+}
+
+/// The paper's ten classes, in the index order of REFERENCE-FACTS.md.
+pub const PAPER_CLASSES: [&str; 10] = ["DW", "CR", "1PO", "2PO", "LO", "LAB", "BA", "KT", "MR", "UT"];
+
+impl ClassSet {
+    /// A class set from names (must be non-empty and unique; checked by [`ClassSet::new`]).
+    pub fn new(names: Vec<String>) -> Result<Self, String> {
+        if names.is_empty() {
+            return Err("a class set needs at least one class".into());
+        }
+        for (i, n) in names.iter().enumerate() {
+            if names[..i].contains(n) {
+                return Err(format!("class name {n:?} appears twice"));
+            }
+        }
+        Ok(ClassSet { names })
+    }
+
+    /// The paper's ten classes ([`PAPER_CLASSES`]).
+    pub fn paper() -> Self {
+        ClassSet { names: PAPER_CLASSES.iter().map(|s| s.to_string()).collect() }
+    }
+
+    /// Number of classes.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Always false: a class set has at least one class.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    /// Class names in index order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Name of class `c`.
+    pub fn name(&self, c: ClassId) -> &str {
+        &self.names[c as usize]
+    }
+
+    /// Index of the class called `name`.
+    pub fn index_of(&self, name: &str) -> Option<ClassId> {
+        self.names.iter().position(|n| n == name).map(|i| i as ClassId)
+    }
+}
+
+/// A place of a topological map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Place {
+    /// User-facing id, unique within the map.
+    pub id: PlaceId,
+    /// Ground-truth class, when annotated.
+    pub class: Option<ClassId>,
+    /// A frontier the robot has not visited yet (no local evidence).
+    pub placeholder: bool,
+    /// Pose x in metres (for drawing).
+    pub x: f64,
+    /// Pose y in metres (for drawing).
+    pub y: f64,
+}
+
+/// A topological map: places (nodes) joined by undirected navigable edges.
+#[derive(Clone, Debug)]
+pub struct TopoMap {
+    /// Human-readable name, e.g. `Freiburg/seq1_cloudy1`.
+    pub name: String,
+    /// The classes places may take.
+    pub classes: ClassSet,
+    /// The graph; node weights are places, in place order.
+    pub graph: UnGraph<Place, ()>,
+}
+
+impl TopoMap {
+    /// Number of places.
+    pub fn num_places(&self) -> usize {
+        self.graph.node_count()
+    }
+
+    /// Number of undirected edges.
+    pub fn num_edges(&self) -> usize {
+        self.graph.edge_count()
+    }
+
+    /// The place at index `i` of the place order.
+    pub fn place(&self, i: usize) -> &Place {
+        &self.graph[NodeIndex::new(i)]
+    }
+
+    /// All places in place order.
+    pub fn places(&self) -> impl Iterator<Item = &Place> {
+        self.graph.node_weights()
+    }
+
+    /// Indices of the neighbours of place `i`, ascending.
+    pub fn neighbors(&self, i: usize) -> Vec<usize> {
+        let mut v: Vec<usize> = self.graph.neighbors(NodeIndex::new(i)).map(|n| n.index()).collect();
+        v.sort_unstable();
+        v
+    }
+}

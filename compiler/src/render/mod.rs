@@ -1,0 +1,1 @@
+//! SVG drawings of maps, per-place class distributions and decompositions.

@@ -1,0 +1,70 @@
+//! The error returned when local evidence cannot be used.
+
+use core::fmt;
+
+/// Why a place's row of local evidence (one non-negative likelihood per class) was rejected.
+///
+/// `place` is the place's index in the model's place order (the SPN variable index);
+/// `place_id` is the id the user knows the place by (equal to `place` for bare SPNs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EvidenceError {
+    /// A value is NaN or infinite.
+    NotFinite {
+        /// Index of the place (variable) in model order.
+        place: usize,
+        /// The place's user-facing id.
+        place_id: u64,
+        /// Class index of the offending value.
+        class: usize,
+    },
+    /// A value is negative.
+    Negative {
+        /// Index of the place (variable) in model order.
+        place: usize,
+        /// The place's user-facing id.
+        place_id: u64,
+        /// Class index of the offending value.
+        class: usize,
+    },
+    /// Every value of the row is zero: the place can take no class at all.
+    NoMass {
+        /// Index of the place (variable) in model order.
+        place: usize,
+        /// The place's user-facing id.
+        place_id: u64,
+    },
+    /// The evidence has the wrong number of places or classes.
+    WrongShape {
+        /// Index of the first place whose row has the wrong length, or the expected place count.
+        place: usize,
+        /// What was expected (classes per row, or number of rows).
+        expected: usize,
+        /// What was given.
+        found: usize,
+    },
+}
+
+impl fmt::Display for EvidenceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            EvidenceError::NotFinite { place, place_id, class } => write!(
+                f,
+                "evidence for place {place_id} (index {place}), class {class} is not finite (NaN or infinite)"
+            ),
+            EvidenceError::Negative { place, place_id, class } => write!(
+                f,
+                "evidence for place {place_id} (index {place}), class {class} is negative"
+            ),
+            EvidenceError::NoMass { place, place_id } => write!(
+                f,
+                "evidence for place {place_id} (index {place}) is zero for every class"
+            ),
+            EvidenceError::WrongShape { place, expected, found } => write!(
+                f,
+                "evidence has the wrong shape at place index {place}: expected {expected}, found {found}"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for EvidenceError {}

@@ -1,0 +1,20 @@
+//! Run-time support shared by the `graphspn` interpreter and the Rust code that
+//! `graphspn-compiler` generates for a known map.
+//!
+//! Everything here is `no_std`, allocation-free and free of `unsafe`:
+//! - [`numerics`]: log-space arithmetic (log-sum-exp with a documented error bound);
+//! - [`EvidenceError`]: what is wrong with a row of local evidence, and where.
+//!
+//! Items in [`__private`] exist only for generated code and may change without notice.
+#![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod numerics;
+
+pub use error::EvidenceError;
+
+/// Helpers called only by generated code. Not part of the public API.
+#[doc(hidden)]
+pub mod __private {}
