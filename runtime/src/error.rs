@@ -33,6 +33,9 @@ pub enum EvidenceError {
         /// The place's user-facing id.
         place_id: u64,
     },
+    /// The evidence is valid but has probability zero under the model (a model whose
+    /// weights exclude every class combination the evidence allows); no marginal exists.
+    ZeroLikelihood,
     /// The evidence has the wrong number of places or classes.
     WrongShape {
         /// Index of the first place whose row has the wrong length, or the expected place count.
@@ -47,11 +50,19 @@ pub enum EvidenceError {
 impl fmt::Display for EvidenceError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
-            EvidenceError::NotFinite { place, place_id, class } => write!(
+            EvidenceError::NotFinite {
+                place,
+                place_id,
+                class,
+            } => write!(
                 f,
                 "evidence for place {place_id} (index {place}), class {class} is not finite (NaN or infinite)"
             ),
-            EvidenceError::Negative { place, place_id, class } => write!(
+            EvidenceError::Negative {
+                place,
+                place_id,
+                class,
+            } => write!(
                 f,
                 "evidence for place {place_id} (index {place}), class {class} is negative"
             ),
@@ -59,7 +70,14 @@ impl fmt::Display for EvidenceError {
                 f,
                 "evidence for place {place_id} (index {place}) is zero for every class"
             ),
-            EvidenceError::WrongShape { place, expected, found } => write!(
+            EvidenceError::ZeroLikelihood => {
+                write!(f, "the evidence has probability zero under the model")
+            }
+            EvidenceError::WrongShape {
+                place,
+                expected,
+                found,
+            } => write!(
                 f,
                 "evidence has the wrong shape at place index {place}: expected {expected}, found {found}"
             ),

@@ -20,7 +20,9 @@ pub struct ClassSet {
 }
 
 /// The paper's ten classes, in the index order of REFERENCE-FACTS.md.
-pub const PAPER_CLASSES: [&str; 10] = ["DW", "CR", "1PO", "2PO", "LO", "LAB", "BA", "KT", "MR", "UT"];
+pub const PAPER_CLASSES: [&str; 10] = [
+    "DW", "CR", "1PO", "2PO", "LO", "LAB", "BA", "KT", "MR", "UT",
+];
 
 impl ClassSet {
     /// A class set from names (must be non-empty and unique; checked by [`ClassSet::new`]).
@@ -38,7 +40,9 @@ impl ClassSet {
 
     /// The paper's ten classes ([`PAPER_CLASSES`]).
     pub fn paper() -> Self {
-        ClassSet { names: PAPER_CLASSES.iter().map(|s| s.to_string()).collect() }
+        ClassSet {
+            names: PAPER_CLASSES.iter().map(|s| s.to_string()).collect(),
+        }
     }
 
     /// Number of classes.
@@ -63,7 +67,10 @@ impl ClassSet {
 
     /// Index of the class called `name`.
     pub fn index_of(&self, name: &str) -> Option<ClassId> {
-        self.names.iter().position(|n| n == name).map(|i| i as ClassId)
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| i as ClassId)
     }
 }
 
@@ -116,7 +123,11 @@ impl TopoMap {
 
     /// Indices of the neighbours of place `i`, ascending.
     pub fn neighbors(&self, i: usize) -> Vec<usize> {
-        let mut v: Vec<usize> = self.graph.neighbors(NodeIndex::new(i)).map(|n| n.index()).collect();
+        let mut v: Vec<usize> = self
+            .graph
+            .neighbors(NodeIndex::new(i))
+            .map(|n| n.index())
+            .collect();
         v.sort_unstable();
         v
     }

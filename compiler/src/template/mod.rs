@@ -22,26 +22,47 @@ pub struct Template {
 impl Template {
     /// One node: `P`.
     pub fn singleton() -> Self {
-        Template { name: "singleton".into(), num_nodes: 1, edges: vec![] }
+        Template {
+            name: "singleton".into(),
+            num_nodes: 1,
+            edges: vec![],
+        }
     }
 
     /// Two adjacent nodes `P–A`, canonical order `[P, A]`.
     pub fn pair() -> Self {
-        Template { name: "pair".into(), num_nodes: 2, edges: vec![(0, 1)] }
+        Template {
+            name: "pair".into(),
+            num_nodes: 2,
+            edges: vec![(0, 1)],
+        }
     }
 
     /// A path `A–P–B` through pivot `P`, canonical order `[P, A, B]`.
     pub fn three() -> Self {
-        Template { name: "three".into(), num_nodes: 3, edges: vec![(0, 1), (0, 2)] }
+        Template {
+            name: "three".into(),
+            num_nodes: 3,
+            edges: vec![(0, 1), (0, 2)],
+        }
     }
 
     /// Pivot `P` with four neighbours, canonical order `[P, A, B, C, D]`.
     pub fn star() -> Self {
-        Template { name: "star".into(), num_nodes: 5, edges: vec![(0, 1), (0, 2), (0, 3), (0, 4)] }
+        Template {
+            name: "star".into(),
+            num_nodes: 5,
+            edges: vec![(0, 1), (0, 2), (0, 3), (0, 4)],
+        }
     }
 
     /// The paper's four templates, largest first: Star, Three, Pair, Singleton.
     pub fn paper_set() -> Vec<Template> {
-        vec![Template::star(), Template::three(), Template::pair(), Template::singleton()]
+        vec![
+            Template::star(),
+            Template::three(),
+            Template::pair(),
+            Template::singleton(),
+        ]
     }
 }
