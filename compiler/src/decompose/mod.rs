@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 /// One component of a decomposition: a copy of a template placed on the map.
-#[derive(Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub struct Component {
     /// Index of the template in the template list the decomposition was made with.
     pub template: usize,

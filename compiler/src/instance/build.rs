@@ -1,0 +1,426 @@
+//! Construction and incremental growth of an instance GraphSPN.
+
+use std::collections::BTreeMap;
+
+use thiserror::Error;
+
+use crate::decompose::{Component, Decomposition};
+use crate::learn::Model;
+use crate::map::TopoMap;
+use crate::spn::{Node, NodeId, Spn};
+
+/// How many decompositions an instance mixes, and how they are chosen.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct InstanceParams {
+    /// Number of decompositions D kept (the root sum's children). Default 5.
+    pub decompositions: usize,
+    /// Number of random candidate partitions by the largest template, of which the
+    /// D with the best coverage are kept. Default 15.
+    pub candidates: usize,
+    /// Seed of every random choice.
+    pub seed: u64,
+}
+
+impl Default for InstanceParams {
+    fn default() -> Self {
+        InstanceParams {
+            decompositions: 5,
+            candidates: 15,
+            seed: 0,
+        }
+    }
+}
+
+/// Why an instance could not be built.
+#[derive(Debug, Error, PartialEq, Eq)]
+pub enum InstanceError {
+    /// The map uses a different class set than the model.
+    #[error("the map {map:?} has classes {map_classes:?} but the model has {model_classes:?}")]
+    ClassMismatch {
+        /// Map name.
+        map: String,
+        /// Class names of the map.
+        map_classes: Vec<String>,
+        /// Class names of the model.
+        model_classes: Vec<String>,
+    },
+    /// The map has no places.
+    #[error("the map {0:?} has no places")]
+    EmptyMap(String),
+    /// No decomposition was given.
+    #[error("an instance needs at least one decomposition")]
+    NoDecompositions,
+    /// A component names a template the model does not have.
+    #[error(
+        "decomposition {decomposition}: component {component} uses template index {template}, but the model has {count} templates"
+    )]
+    UnknownTemplate {
+        /// Decomposition index.
+        decomposition: usize,
+        /// Component index within it.
+        component: usize,
+        /// The template index given.
+        template: usize,
+        /// Number of templates of the model.
+        count: usize,
+    },
+    /// A component's place count differs from its template's node count.
+    #[error(
+        "decomposition {decomposition}: component {component} has {found} places but template {template:?} has {expected} nodes"
+    )]
+    WrongArity {
+        /// Decomposition index.
+        decomposition: usize,
+        /// Component index within it.
+        component: usize,
+        /// Template name.
+        template: String,
+        /// Template node count.
+        expected: usize,
+        /// Places given.
+        found: usize,
+    },
+    /// A place index outside the map.
+    #[error(
+        "decomposition {decomposition}: component {component} refers to place index {place}, but the map has {count} places"
+    )]
+    PlaceOutOfRange {
+        /// Decomposition index.
+        decomposition: usize,
+        /// Component index within it.
+        component: usize,
+        /// The place index.
+        place: usize,
+        /// Number of places of the map.
+        count: usize,
+    },
+    /// A decomposition covers a place twice or not at all.
+    #[error(
+        "decomposition {decomposition} covers place {place_id} {times} times (must be exactly once)"
+    )]
+    NotAPartition {
+        /// Decomposition index.
+        decomposition: usize,
+        /// Id of the place.
+        place_id: u32,
+        /// How often it is covered.
+        times: usize,
+    },
+    /// [`Instance::update`] was given a map with fewer places than before.
+    #[error("an instance can only grow: the map had {before} places and now has {after}")]
+    MapShrank {
+        /// Places before.
+        before: usize,
+        /// Places now.
+        after: usize,
+    },
+    /// A template SPN's variable count or class count does not fit its template.
+    #[error("the model's SPN for template {template:?} does not fit it: {reason}")]
+    BadTemplateSpn {
+        /// Template name.
+        template: String,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// An instance GraphSPN: the explicit SPN over all places of a map, and how it was assembled.
+#[derive(Clone, Debug)]
+pub struct Instance {
+    /// The instance SPN; variable `p` is place `p` of the map.
+    pub spn: Spn,
+    /// The decompositions mixed by the root sum, in child order.
+    pub decompositions: Vec<Decomposition>,
+    /// Id of the leaf for (place, class): `leaves[p][c]`.
+    leaves: Vec<Vec<NodeId>>,
+    /// Root node of the template copy of each distinct component built so far.
+    copies: BTreeMap<Component, NodeId>,
+    /// Number of classes.
+    num_classes: usize,
+}
+
+impl Instance {
+    /// Assembles the instance SPN of `map` from the given decompositions (Alg. 1).
+    pub fn build(
+        model: &Model,
+        map: &TopoMap,
+        decompositions: Vec<Decomposition>,
+    ) -> Result<Instance, InstanceError> {
+        check_inputs(model, map, &decompositions)?;
+        let num_classes = model.classes.len();
+        let mut instance = Instance {
+            spn: Spn {
+                classes: vec![num_classes as u32; map.num_places()],
+                nodes: Vec::new(),
+                root: 0,
+            },
+            decompositions: Vec::new(),
+            leaves: Vec::new(),
+            copies: BTreeMap::new(),
+            num_classes,
+        };
+        instance.add_leaves(map.num_places());
+        instance.assemble(model, decompositions);
+        Ok(instance)
+    }
+
+    /// Replaces the decompositions after the map grew (places/edges added, existing place
+    /// indices unchanged): template copies of components that are still used are kept as
+    /// they are; only new components are instantiated, then the decomposition products and
+    /// the root are rebuilt. Gives exactly the SPN [`Instance::build`] would give for the
+    /// same decompositions, up to node order and unused copies being dropped.
+    pub fn update(
+        &mut self,
+        model: &Model,
+        map: &TopoMap,
+        decompositions: Vec<Decomposition>,
+    ) -> Result<(), InstanceError> {
+        check_inputs(model, map, &decompositions)?;
+        let old_places = self.leaves.len();
+        if map.num_places() < old_places {
+            return Err(InstanceError::NotAPartition {
+                decomposition: 0,
+                place_id: 0,
+                times: 0,
+            });
+        }
+        self.spn.classes = vec![self.num_classes as u32; map.num_places()];
+        self.add_leaves(map.num_places() - old_places);
+        // Drop the previous products and root, and copies no longer used, by compaction.
+        let keep: std::collections::BTreeSet<&Component> = decompositions
+            .iter()
+            .flat_map(|d| d.components.iter())
+            .collect();
+        self.copies.retain(|c, _| keep.contains(c));
+        self.compact();
+        self.assemble(model, decompositions);
+        Ok(())
+    }
+
+    /// Number of template copies (distinct components) in the instance.
+    pub fn num_copies(&self) -> usize {
+        self.copies.len()
+    }
+
+    fn add_leaves(&mut self, count: usize) {
+        let first_place = self.leaves.len();
+        for p in first_place..first_place + count {
+            let mut row = Vec::with_capacity(self.num_classes);
+            for c in 0..self.num_classes {
+                row.push(self.push(Node::Leaf {
+                    var: p as u32,
+                    class: c as u32,
+                }));
+            }
+            self.leaves.push(row);
+        }
+    }
+
+    fn push(&mut self, node: Node) -> NodeId {
+        self.spn.nodes.push(node);
+        (self.spn.nodes.len() - 1) as NodeId
+    }
+
+    /// Instantiates missing component copies, then the decomposition products and the root.
+    fn assemble(&mut self, model: &Model, decompositions: Vec<Decomposition>) {
+        let mut products = Vec::with_capacity(decompositions.len());
+        for d in &decompositions {
+            let mut children = Vec::with_capacity(d.components.len());
+            for comp in &d.components {
+                let root = match self.copies.get(comp) {
+                    Some(&r) => r,
+                    None => {
+                        let r = self.instantiate(&model.spns[comp.template], &comp.places);
+                        self.copies.insert(comp.clone(), r);
+                        r
+                    }
+                };
+                children.push(root);
+            }
+            products.push(self.push(Node::Product { children }));
+        }
+        let w = 1.0 / products.len() as f64;
+        let weights = vec![w; products.len()];
+        self.spn.root = self.push(Node::Sum {
+            children: products,
+            weights,
+        });
+        self.decompositions = decompositions;
+    }
+
+    /// Copies a template SPN with its leaves bound to `places`; returns the copy's root.
+    fn instantiate(&mut self, template: &Spn, places: &[usize]) -> NodeId {
+        let mut map_ids: Vec<NodeId> = Vec::with_capacity(template.nodes.len());
+        for node in &template.nodes {
+            let id = match node {
+                Node::Leaf { var, class } => self.leaves[places[*var as usize]][*class as usize],
+                Node::Sum { children, weights } => {
+                    let children = children.iter().map(|&c| map_ids[c as usize]).collect();
+                    self.push(Node::Sum {
+                        children,
+                        weights: weights.clone(),
+                    })
+                }
+                Node::Product { children } => {
+                    let children = children.iter().map(|&c| map_ids[c as usize]).collect();
+                    self.push(Node::Product { children })
+                }
+            };
+            map_ids.push(id);
+        }
+        map_ids[template.root as usize]
+    }
+
+    /// Removes every node not reachable from a kept copy or a leaf, renumbering the rest
+    /// in their current (topological) order. The root and products are dropped too.
+    fn compact(&mut self) {
+        let n = self.spn.nodes.len();
+        let mut live = vec![false; n];
+        for row in &self.leaves {
+            for &l in row {
+                live[l as usize] = true;
+            }
+        }
+        for &r in self.copies.values() {
+            live[r as usize] = true;
+        }
+        for i in (0..n).rev() {
+            if !live[i] {
+                continue;
+            }
+            match &self.spn.nodes[i] {
+                Node::Leaf { .. } => {}
+                Node::Sum { children, .. } | Node::Product { children } => {
+                    for &c in children {
+                        live[c as usize] = true;
+                    }
+                }
+            }
+        }
+        let mut new_id = vec![NodeId::MAX; n];
+        let mut nodes = Vec::with_capacity(n);
+        for (i, node) in std::mem::take(&mut self.spn.nodes).into_iter().enumerate() {
+            if !live[i] {
+                continue;
+            }
+            new_id[i] = nodes.len() as NodeId;
+            nodes.push(match node {
+                Node::Leaf { .. } => node,
+                Node::Sum { children, weights } => Node::Sum {
+                    children: children.iter().map(|&c| new_id[c as usize]).collect(),
+                    weights,
+                },
+                Node::Product { children } => Node::Product {
+                    children: children.iter().map(|&c| new_id[c as usize]).collect(),
+                },
+            });
+        }
+        self.spn.nodes = nodes;
+        for row in &mut self.leaves {
+            for l in row.iter_mut() {
+                *l = new_id[*l as usize];
+            }
+        }
+        for r in self.copies.values_mut() {
+            *r = new_id[*r as usize];
+        }
+    }
+}
+
+fn check_inputs(
+    model: &Model,
+    map: &TopoMap,
+    decompositions: &[Decomposition],
+) -> Result<(), InstanceError> {
+    if map.classes != model.classes {
+        return Err(InstanceError::ClassMismatch {
+            map: map.name.clone(),
+            map_classes: map.classes.names().to_vec(),
+            model_classes: model.classes.names().to_vec(),
+        });
+    }
+    if map.num_places() == 0 {
+        return Err(InstanceError::EmptyMap(map.name.clone()));
+    }
+    if decompositions.is_empty() {
+        return Err(InstanceError::NoDecompositions);
+    }
+    for (t, spn) in model.templates.iter().zip(&model.spns) {
+        if spn.num_vars() != t.num_nodes {
+            return Err(InstanceError::BadTemplateSpn {
+                template: t.name.clone(),
+                reason: format!(
+                    "{} variables for {} template nodes",
+                    spn.num_vars(),
+                    t.num_nodes
+                ),
+            });
+        }
+        if let Some(v) = spn
+            .classes
+            .iter()
+            .position(|&c| c as usize != model.classes.len())
+        {
+            return Err(InstanceError::BadTemplateSpn {
+                template: t.name.clone(),
+                reason: format!(
+                    "variable {v} has {} classes, the model has {}",
+                    spn.classes[v],
+                    model.classes.len()
+                ),
+            });
+        }
+    }
+    if model.spns.len() != model.templates.len() {
+        return Err(InstanceError::BadTemplateSpn {
+            template: String::new(),
+            reason: format!(
+                "{} SPNs for {} templates",
+                model.spns.len(),
+                model.templates.len()
+            ),
+        });
+    }
+    let n = map.num_places();
+    for (di, d) in decompositions.iter().enumerate() {
+        let mut covered = vec![0usize; n];
+        for (ci, comp) in d.components.iter().enumerate() {
+            let Some(t) = model.templates.get(comp.template) else {
+                return Err(InstanceError::UnknownTemplate {
+                    decomposition: di,
+                    component: ci,
+                    template: comp.template,
+                    count: model.templates.len(),
+                });
+            };
+            if comp.places.len() != t.num_nodes {
+                return Err(InstanceError::WrongArity {
+                    decomposition: di,
+                    component: ci,
+                    template: t.name.clone(),
+                    expected: t.num_nodes,
+                    found: comp.places.len(),
+                });
+            }
+            for &p in &comp.places {
+                if p >= n {
+                    return Err(InstanceError::PlaceOutOfRange {
+                        decomposition: di,
+                        component: ci,
+                        place: p,
+                        count: n,
+                    });
+                }
+                covered[p] += 1;
+            }
+        }
+        if let Some(p) = covered.iter().position(|&k| k != 1) {
+            return Err(InstanceError::NotAPartition {
+                decomposition: di,
+                place_id: map.place(p).id,
+                times: covered[p],
+            });
+        }
+    }
+    Ok(())
+}
