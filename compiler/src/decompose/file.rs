@@ -79,6 +79,13 @@ pub enum DecompositionFileError {
         /// The map named in the file.
         found: String,
     },
+    /// The template list given to read the file against is unusable (e.g. two
+    /// templates share a name, so names are ambiguous).
+    #[error("template list: {source}")]
+    Templates {
+        /// What is wrong.
+        source: DecomposeError,
+    },
     /// A component names a template not in the list.
     #[error(
         "decomposition {decomposition}, component {component}: unknown template {name:?} (known: {known})"
@@ -211,6 +218,15 @@ pub fn from_json(
             expected: map.name.clone(),
             found: repr.map,
         });
+    }
+    for (i, t) in templates.iter().enumerate() {
+        if templates[..i].iter().any(|u| u.name == t.name) {
+            return Err(DecompositionFileError::Templates {
+                source: DecomposeError::DuplicateTemplateName {
+                    name: t.name.clone(),
+                },
+            });
+        }
     }
     let by_name: HashMap<&str, usize> = templates
         .iter()
