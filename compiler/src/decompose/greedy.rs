@@ -74,7 +74,7 @@ fn prepare(map: &TopoMap, templates: &[Template]) -> Result<Prepared, DecomposeE
 /// random matches of `t` until no match is left among them.
 ///
 /// The paper repeats "pick a random place where the template matches among the
-/// unused places, take a random match there". We instead visit the places once,
+/// unused places, take a random match there". We instead visit the unused places once,
 /// in a uniformly random order, and take a random match at each place where one
 /// exists when it is visited. This has the same distribution, and one pass
 /// suffices:
@@ -96,8 +96,9 @@ fn greedy_stage<R: Rng + ?Sized>(
     components: &mut Vec<Component>,
 ) {
     let matcher = &prep.matchers[t];
-    let n = used.len();
-    let mut perm: Vec<usize> = (0..n).collect();
+    // Used places never admit a match, so only the unused ones are visited.
+    let mut perm: Vec<usize> = (0..used.len()).filter(|&p| !used[p]).collect();
+    let n = perm.len();
     for i in 0..n.saturating_sub(1) {
         let j = rng.random_range(i..n);
         perm.swap(i, j);
