@@ -159,7 +159,7 @@ fn check_decomposition(d: &Decomposition, map: &TopoMap, templates: &[Template],
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 40, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
 
     #[test]
     fn decompositions_are_maximal_partitions_into_matches(

@@ -274,7 +274,7 @@ fn all_templates() -> Vec<Template> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
 
     /// On random graphs with random used sets, both matchers agree with brute
     /// force on whether a rooted match exists, and what they return is a match.
