@@ -91,8 +91,7 @@ fn cases() -> Vec<Case> {
             .map(|t| random_spn(&mut rng, t.num_nodes, c, zeros, scale))
             .collect();
         let m = model(c, templates, spns);
-        let (w, h) = if c == 2 { (3, 2) } else { (3, 2) };
-        let g = grid(w, h, c);
+        let g = grid(3, 2, c);
         let decs: Vec<_> = (0..1 + seed % 3)
             .map(|s| decompose(&g, &m.templates, seed * 10 + s))
             .collect();
