@@ -3,7 +3,8 @@
 //!
 //! Everything here is `no_std`, allocation-free and free of `unsafe`:
 //! - [`numerics`]: log-space arithmetic (log-sum-exp with a documented error bound);
-//! - [`EvidenceError`]: what is wrong with a row of local evidence, and where.
+//! - [`EvidenceError`]: what is wrong with a row of local evidence, and where;
+//! - [`CompiledMap`]: the trait every compiled map implements.
 //!
 //! Items in [`__private`] exist only for generated code and may change without notice.
 #![no_std]
@@ -17,4 +18,7 @@ pub use error::EvidenceError;
 
 /// Helpers called only by generated code. Not part of the public API.
 #[doc(hidden)]
-pub mod __private {}
+pub mod __private;
+pub mod compiled;
+
+pub use compiled::CompiledMap;

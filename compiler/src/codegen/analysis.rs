@@ -1,0 +1,317 @@
+//! Checks on the inputs of code generation, and the generation-time analysis that
+//! decides, per template, whether linear-space evaluation is safe.
+//!
+//! # Why linear space is safe when [`Numerics::Linear`] is chosen
+//!
+//! Generated code scales every place's evidence row so its largest entry is exactly 1
+//! (`x_p = α_p / s_p`; `S` is homogeneous of degree 1 in each row, so
+//! `ln S(α) = Σ_p ln s_p + ln S(x)`). A template SPN `T` with normalised weights is a
+//! multilinear polynomial with non-negative coefficients in the `x` entries, so
+//! `T(x) ≥ T(onehot(argmax x)) ≥ LB`, where `LB` is the minimum of `T` over all one-hot
+//! class assignments (enumerated here). Every node value is `≤ 1` (it is a normalised
+//! distribution evaluated at entries `≤ 1`). When `LB ≥` the precision's threshold
+//! (`1e-20` for `f32`, `1e-200` for `f64`), any intermediate term that underflows
+//! contributes an absolute error of at most the smallest normal number (`1.2e-38` for
+//! `f32`) per term, i.e. a relative error `≤ #terms · 1.2e-38 / 1e-20 < 1e-14` of the
+//! template's value, negligible against rounding. The same argument, with the minimum
+//! of the max-product network over one-hot assignments, covers MPE. Otherwise (weights
+//! not normalised, a zero weight pattern, or too many assignments to enumerate) the
+//! template is generated in log space, which is always correct.
+
+use std::collections::BTreeMap;
+
+use crate::decompose::Decomposition;
+use crate::learn::Model;
+use crate::map::TopoMap;
+use crate::spn::{Node, Spn};
+
+use super::{CodegenError, Precision};
+
+/// How a template's functions compute.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Numerics {
+    /// Linear space; values are `≥ min_value` (and max-product values `≥ min_max`)
+    /// for scaled evidence.
+    Linear {
+        /// Lower bound of the template value for scaled evidence.
+        min_value: f64,
+        /// Lower bound of the max-product value for scaled evidence.
+        min_max: f64,
+    },
+    /// Log space (every node holds a natural-log value).
+    Log,
+}
+
+/// Largest number of one-hot assignments enumerated to bound a template from below.
+pub const MAX_ASSIGNMENTS: u64 = 2_000_000;
+/// Largest `assignments × nodes` work spent on that bound.
+pub const MAX_WORK: u64 = 400_000_000;
+
+/// Checks an SPN's structure: node ids in range and topological, leaves in range,
+/// weights finite and non-negative, one weight per child.
+pub fn check_spn(t: usize, spn: &Spn, num_vars: usize, classes: usize) -> Result<(), CodegenError> {
+    let bad = |node: usize, what: String| CodegenError::BadSpn {
+        template: t,
+        node,
+        what,
+    };
+    if spn.classes.len() != num_vars {
+        return Err(bad(
+            0,
+            format!(
+                "has {} variables, the template has {num_vars} nodes",
+                spn.classes.len()
+            ),
+        ));
+    }
+    if let Some(&c) = spn.classes.iter().find(|&&c| c as usize != classes) {
+        return Err(bad(
+            0,
+            format!("a variable has {c} classes, the model has {classes}"),
+        ));
+    }
+    if spn.nodes.is_empty() || spn.root as usize >= spn.nodes.len() {
+        return Err(bad(spn.root as usize, "root out of range".into()));
+    }
+    for (i, n) in spn.nodes.iter().enumerate() {
+        match n {
+            Node::Leaf { var, class } => {
+                if *var as usize >= num_vars || *class as usize >= classes {
+                    return Err(bad(
+                        i,
+                        format!("leaf (var {var}, class {class}) out of range"),
+                    ));
+                }
+            }
+            Node::Sum { children, weights } => {
+                if children.len() != weights.len() {
+                    return Err(bad(
+                        i,
+                        "sum has a different number of children and weights".into(),
+                    ));
+                }
+                if let Some(w) = weights.iter().find(|w| !w.is_finite() || **w < 0.0) {
+                    return Err(bad(i, format!("weight {w} is not finite and non-negative")));
+                }
+                if children.is_empty() || children.iter().any(|&c| c as usize >= i) {
+                    return Err(bad(
+                        i,
+                        "sum children must be non-empty and precede it".into(),
+                    ));
+                }
+            }
+            Node::Product { children } => {
+                if children.is_empty() || children.iter().any(|&c| c as usize >= i) {
+                    return Err(bad(
+                        i,
+                        "product children must be non-empty and precede it".into(),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks model, map and decompositions against each other.
+pub fn check_inputs(
+    model: &Model,
+    map: &TopoMap,
+    decompositions: &[Decomposition],
+) -> Result<(), CodegenError> {
+    let c = model.classes.len();
+    if map.classes.len() != c {
+        return Err(CodegenError::ClassMismatch {
+            model: c,
+            map: map.classes.len(),
+        });
+    }
+    if model.templates.len() != model.spns.len() {
+        return Err(CodegenError::ModelShape {
+            templates: model.templates.len(),
+            spns: model.spns.len(),
+        });
+    }
+    for (t, (tpl, spn)) in model.templates.iter().zip(&model.spns).enumerate() {
+        check_spn(t, spn, tpl.num_nodes, c)?;
+    }
+    let n = map.num_places();
+    if n == 0 {
+        return Err(CodegenError::EmptyMap);
+    }
+    if decompositions.is_empty() {
+        return Err(CodegenError::NoDecompositions);
+    }
+    for (d, dec) in decompositions.iter().enumerate() {
+        let mut seen = vec![None::<usize>; n];
+        for (k, comp) in dec.components.iter().enumerate() {
+            let Some(tpl) = model.templates.get(comp.template) else {
+                return Err(CodegenError::BadComponent {
+                    decomposition: d,
+                    component: k,
+                    what: format!(
+                        "template index {} out of range (model has {})",
+                        comp.template,
+                        model.templates.len()
+                    ),
+                });
+            };
+            if comp.places.len() != tpl.num_nodes {
+                return Err(CodegenError::BadComponent {
+                    decomposition: d,
+                    component: k,
+                    what: format!(
+                        "has {} places, template {:?} has {} nodes",
+                        comp.places.len(),
+                        tpl.name,
+                        tpl.num_nodes
+                    ),
+                });
+            }
+            for &p in &comp.places {
+                let Some(slot) = seen.get_mut(p) else {
+                    return Err(CodegenError::BadComponent {
+                        decomposition: d,
+                        component: k,
+                        what: format!("place index {p} out of range (map has {n} places)"),
+                    });
+                };
+                if let Some(other) = *slot {
+                    return Err(CodegenError::PlaceCoveredTwice {
+                        decomposition: d,
+                        place: p,
+                        place_id: map.place(p).id,
+                        components: (other, k),
+                    });
+                }
+                *slot = Some(k);
+            }
+        }
+        if let Some(p) = seen.iter().position(Option::is_none) {
+            return Err(CodegenError::PlaceNotCovered {
+                decomposition: d,
+                place: p,
+                place_id: map.place(p).id,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Value of every node for leaf inputs `x[var][class]` (sum or max at sum nodes).
+pub fn eval_nodes(spn: &Spn, x: &[Vec<f64>], max: bool) -> Vec<f64> {
+    let mut v = vec![0.0; spn.nodes.len()];
+    for (i, n) in spn.nodes.iter().enumerate() {
+        v[i] = match n {
+            Node::Leaf { var, class } => x[*var as usize][*class as usize],
+            Node::Product { children } => children.iter().map(|&c| v[c as usize]).product(),
+            Node::Sum { children, weights } => {
+                let terms = children
+                    .iter()
+                    .zip(weights)
+                    .map(|(&c, w)| w * v[c as usize]);
+                if max {
+                    terms.fold(0.0, f64::max)
+                } else {
+                    terms.sum()
+                }
+            }
+        };
+    }
+    v
+}
+
+/// Whether every sum's weights add up to 1 (within `1e-6`) and the SPN is complete and
+/// decomposable at one-hot inputs, checked cheaply: the value at all-ones input is 1.
+fn normalised(spn: &Spn) -> bool {
+    let sums_ok = spn.nodes.iter().all(|n| match n {
+        Node::Sum { weights, .. } => (weights.iter().sum::<f64>() - 1.0).abs() <= 1e-6,
+        _ => true,
+    });
+    if !sums_ok {
+        return false;
+    }
+    let ones: Vec<Vec<f64>> = spn.classes.iter().map(|&c| vec![1.0; c as usize]).collect();
+    let v = eval_nodes(spn, &ones, false);
+    (v[spn.root as usize] - 1.0).abs() <= 1e-6
+}
+
+/// Decides linear or log space for one template SPN (see the module docs).
+pub fn numerics(spn: &Spn, precision: Precision) -> Numerics {
+    let threshold = match precision {
+        Precision::F32 => 1e-20,
+        Precision::F64 => 1e-200,
+    };
+    if !normalised(spn) {
+        return Numerics::Log;
+    }
+    let n = spn.num_vars();
+    let c = spn.classes.first().copied().unwrap_or(1) as u64;
+    let Some(count) = c.checked_pow(n as u32) else {
+        return Numerics::Log;
+    };
+    if count > MAX_ASSIGNMENTS || count.saturating_mul(spn.nodes.len() as u64) > MAX_WORK {
+        return Numerics::Log;
+    }
+    let mut x: Vec<Vec<f64>> = vec![vec![0.0; c as usize]; n];
+    let mut y = vec![0usize; n];
+    let (mut min_value, mut min_max) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..count {
+        for (row, &cls) in x.iter_mut().zip(&y) {
+            row.iter_mut().for_each(|v| *v = 0.0);
+            row[cls] = 1.0;
+        }
+        min_value = min_value.min(eval_nodes(spn, &x, false)[spn.root as usize]);
+        min_max = min_max.min(eval_nodes(spn, &x, true)[spn.root as usize]);
+        for digit in y.iter_mut() {
+            *digit += 1;
+            if *digit < c as usize {
+                break;
+            }
+            *digit = 0;
+        }
+    }
+    if min_value >= threshold && min_max >= threshold {
+        Numerics::Linear { min_value, min_max }
+    } else {
+        Numerics::Log
+    }
+}
+
+/// A component shared by one or more decompositions (same template, same places).
+#[derive(Clone, Debug)]
+pub struct Unique {
+    /// Template index.
+    pub template: usize,
+    /// Places in template order.
+    pub places: Vec<usize>,
+    /// Decompositions containing it, ascending.
+    pub decs: Vec<usize>,
+}
+
+/// Deduplicates components across decompositions, in order of first appearance.
+pub fn unique_components(decompositions: &[Decomposition]) -> Vec<Unique> {
+    let mut index: BTreeMap<(usize, &[usize]), usize> = BTreeMap::new();
+    let mut out: Vec<Unique> = Vec::new();
+    for (d, dec) in decompositions.iter().enumerate() {
+        for comp in &dec.components {
+            let key = (comp.template, comp.places.as_slice());
+            match index.get(&key) {
+                Some(&u) => {
+                    if out[u].decs.last() != Some(&d) {
+                        out[u].decs.push(d);
+                    }
+                }
+                None => {
+                    index.insert(key, out.len());
+                    out.push(Unique {
+                        template: comp.template,
+                        places: comp.places.clone(),
+                        decs: vec![d],
+                    });
+                }
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,402 @@
+//! The per-map part of the generated module: constants, the public API and the
+//! chunked wiring that calls the shared template functions for every component.
+//!
+//! # Passes and memory
+//!
+//! No scratch array grows with the map except the caller's own buffers:
+//! - *value pass* (`lp_chunk*`): every distinct component (same template and places,
+//!   deduplicated across decompositions) is evaluated once on its scaled evidence
+//!   rows and its value multiplied (linear templates, in `f64`, flushed into a log
+//!   before the product could underflow) or added (log templates) into `lp[d]` for
+//!   every decomposition `d` containing it;
+//! - *posterior pass* (`post_chunk*`, marginals only): every distinct component is
+//!   evaluated again with its backward sweep, giving local posteriors
+//!   `m_k[i][c] = x_i[c]·∂T_k/∂x_i[c] / T_k`, which are added into `out[p]` weighted by
+//!   `Σ_{d ∋ k} w_d`, `w_d = e^{ln(1/D) + lp_d − ln Ŝ}` the posterior of decomposition `d`.
+//!   Recomputing the forward sweep costs about a third more arithmetic than storing
+//!   per-component gradients, which would need `D·N·C` scalars (2 MB at 10k places).
+//! - MPE: a max-product value pass, then only the best decomposition's components
+//!   are re-run with backtracking to write the labels.
+
+use std::fmt::Write;
+
+use crate::decompose::Decomposition;
+use crate::learn::Model;
+use crate::map::TopoMap;
+
+use super::CodegenOptions;
+use super::analysis::{Numerics, Unique, numerics, unique_components};
+use super::emit::{Lit, P};
+use super::template::TemplateCode;
+
+fn sanitize(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    s.chars().take(24).collect()
+}
+
+/// Emits the calls of one chunk's value pass into `body`.
+///
+/// `max` selects the max-product functions. Linear values are multiplied into
+/// `q[d]` (`f64`) and flushed (`lp[d] += ln q[d]`) before the product of their lower
+/// bounds could drop below `1e-300`.
+fn value_chunk(
+    chunk: &[Unique],
+    tpl: &[(String, Numerics)],
+    d_count: usize,
+    max: bool,
+    l: &Lit,
+    body: &mut String,
+) {
+    let t = l.t;
+    let f = if max { "mpe" } else { "fwd" };
+    // log10 of the current product bound, per decomposition.
+    let mut bound = vec![0.0f64; d_count];
+    let mut touched = vec![false; d_count];
+    let uses_q = chunk
+        .iter()
+        .any(|u| matches!(tpl[u.template].1, Numerics::Linear { .. }));
+    if uses_q {
+        let _ = writeln!(body, "let mut q = [1.0f64; {d_count}];");
+    }
+    for u in chunk {
+        let (name, num) = &tpl[u.template];
+        let rows: Vec<String> = u
+            .places
+            .iter()
+            .map(|p| format!("{P}prep_{t}(&e[{p}], labels[{p}])"))
+            .collect();
+        let call = if max {
+            let _ = writeln!(body, "let mut lab = [0u16; {}];", u.places.len());
+            format!("{name}_{f}(&[{}], &mut lab)", rows.join(", "))
+        } else {
+            format!("{name}_{f}(&[{}])", rows.join(", "))
+        };
+        let _ = writeln!(body, "let v = f64::from({call});");
+        match num {
+            Numerics::Linear { min_value, min_max } => {
+                let lb = (if max { *min_max } else { *min_value }).log10();
+                for &d in &u.decs {
+                    if bound[d] + lb < -300.0 {
+                        let _ = writeln!(body, "lp[{d}] += {P}ln64(q[{d}]); q[{d}] = 1.0;");
+                        bound[d] = 0.0;
+                    }
+                    bound[d] += lb;
+                    touched[d] = true;
+                    let _ = writeln!(body, "q[{d}] *= v;");
+                }
+            }
+            Numerics::Log => {
+                for &d in &u.decs {
+                    let _ = writeln!(body, "lp[{d}] += v;");
+                }
+            }
+        }
+    }
+    for (d, &tch) in touched.iter().enumerate() {
+        if tch {
+            let _ = writeln!(body, "lp[{d}] += {P}ln64(q[{d}]);");
+        }
+    }
+}
+
+/// The whole module text (unformatted).
+pub fn module(
+    model: &Model,
+    map: &TopoMap,
+    decs: &[Decomposition],
+    options: &CodegenOptions,
+) -> String {
+    let l = Lit::new(options.precision);
+    let t = l.t;
+    let n = map.num_places();
+    let c = model.classes.len();
+    let d_count = decs.len();
+    let uniques = unique_components(decs);
+    let mut used = vec![false; model.templates.len()];
+    for u in &uniques {
+        used[u.template] = true;
+    }
+    let tpl: Vec<(String, Numerics)> = model
+        .templates
+        .iter()
+        .zip(&model.spns)
+        .enumerate()
+        .map(|(k, (tp, spn))| {
+            let num = if used[k] {
+                numerics(spn, options.precision)
+            } else {
+                Numerics::Log
+            };
+            (format!("t{k}_{}", sanitize(&tp.name)), num)
+        })
+        .collect();
+    let mut s = String::new();
+    let ids: Vec<String> = map.places().map(|p| p.id.to_string()).collect();
+    let names: Vec<String> = model
+        .classes
+        .names()
+        .iter()
+        .map(|x| format!("{x:?}"))
+        .collect();
+    let _ = write!(
+        s,
+        r#"
+/// Number of places of the map (the length of every evidence array).
+pub const NUM_PLACES: usize = {n};
+/// Number of classes per place.
+pub const NUM_CLASSES: usize = {c};
+/// Number of decompositions mixed (with uniform weights) at the root.
+pub const NUM_DECOMPOSITIONS: usize = {d_count};
+/// User-facing id of each place, in place order (evidence row `p` is place `PLACE_IDS[p]`).
+pub const PLACE_IDS: [u32; NUM_PLACES] = [{ids}];
+/// Class names in class-index order.
+pub const CLASS_NAMES: [&str; NUM_CLASSES] = [{names}];
+/// The label meaning "unknown" in label arrays.
+pub const UNKNOWN: u16 = u16::MAX;
+/// Local evidence: one row of non-negative likelihoods (one per class) per place.
+pub type Evidence = [[{t}; NUM_CLASSES]; NUM_PLACES];
+/// Marginals: `P(Y_p = c | evidence)` per place and class.
+pub type Marginals = [[{t}; NUM_CLASSES]; NUM_PLACES];
+/// One class index per place (`UNKNOWN` = not labelled).
+pub type Labels = [u16; NUM_PLACES];
+static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
+"#,
+        ids = ids.join(", "),
+        names = names.join(", ")
+    );
+    // Template functions.
+    for (k, spn) in model.spns.iter().enumerate() {
+        if !used[k] {
+            continue;
+        }
+        let code = TemplateCode {
+            prefix: tpl[k].0.clone(),
+            spn,
+            numerics: tpl[k].1,
+            classes: c,
+        };
+        let _ = writeln!(
+            s,
+            "// template {k} ({:?}): {}",
+            model.templates[k].name,
+            match tpl[k].1 {
+                Numerics::Linear { min_value, min_max } =>
+                    format!("linear space, value ≥ {min_value:e}, max-product ≥ {min_max:e}"),
+                Numerics::Log => "log space".into(),
+            }
+        );
+        code.statics(&l, &mut s);
+        code.fwd(&l, &mut s);
+        code.post(&l, &mut s);
+        code.mpe(&l, &mut s);
+    }
+    let chunks: Vec<&[Unique]> = uniques.chunks(options.chunk_size).collect();
+    // Value passes.
+    for (j, ch) in chunks.iter().enumerate() {
+        for (max, name) in [(false, "lp"), (true, "mpv")] {
+            let mut body = String::new();
+            value_chunk(ch, &tpl, d_count, max, &l, &mut body);
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn {name}_chunk{j}(e: &Evidence, labels: &Labels, lp: &mut [f64; NUM_DECOMPOSITIONS]) {{ {body} }}"
+            );
+        }
+        // Posterior pass.
+        let mut body = String::new();
+        for u in ch.iter() {
+            let (name, _) = &tpl[u.template];
+            let rows: Vec<String> = u
+                .places
+                .iter()
+                .map(|p| format!("{P}prep_{t}(&e[{p}], UNKNOWN)"))
+                .collect();
+            let ws: Vec<String> = u.decs.iter().map(|d| format!("w[{d}]")).collect();
+            let _ = writeln!(
+                body,
+                "{{ let mut g = [[0.0; NUM_CLASSES]; {}]; {name}_post(&[{}], &mut g); let wk = {};",
+                u.places.len(),
+                rows.join(", "),
+                ws.join(" + ")
+            );
+            for (i, p) in u.places.iter().enumerate() {
+                let _ = writeln!(body, "{P}axpy_{t}(&mut out[{p}], wk, &g[{i}]);");
+            }
+            body.push_str("}\n");
+        }
+        let _ = writeln!(
+            s,
+            "#[inline(never)] fn post_chunk{j}(e: &Evidence, w: &[{t}; NUM_DECOMPOSITIONS], out: &mut Marginals) {{ {body} }}"
+        );
+    }
+    // MPE labelling of one decomposition, chunked.
+    let mut mpe_dispatch = String::new();
+    for (d, dec) in decs.iter().enumerate() {
+        let mut calls = Vec::new();
+        for (j, ch) in dec.components.chunks(options.chunk_size).enumerate() {
+            let mut body = String::new();
+            for comp in ch {
+                let (name, _) = &tpl[comp.template];
+                let rows: Vec<String> = comp
+                    .places
+                    .iter()
+                    .map(|p| format!("{P}prep_{t}(&e[{p}], UNKNOWN)"))
+                    .collect();
+                let _ = writeln!(
+                    body,
+                    "{{ let mut lab = [0u16; {}]; {name}_mpe(&[{}], &mut lab);",
+                    comp.places.len(),
+                    rows.join(", ")
+                );
+                for (i, p) in comp.places.iter().enumerate() {
+                    let _ = writeln!(body, "labels[{p}] = lab[{i}];");
+                }
+                body.push_str("}\n");
+            }
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn mpe_d{d}_chunk{j}(e: &Evidence, labels: &mut Labels) {{ {body} }}"
+            );
+            calls.push(format!("mpe_d{d}_chunk{j}(e, labels);"));
+        }
+        let _ = writeln!(mpe_dispatch, "{d} => {{ {} }}", calls.join(" "));
+    }
+    let lp_calls: String = (0..chunks.len())
+        .map(|j| format!("lp_chunk{j}(e, labels, &mut lp);"))
+        .collect();
+    let mpv_calls: String = (0..chunks.len())
+        .map(|j| format!("mpv_chunk{j}(e, &ALL_UNKNOWN, &mut lp);"))
+        .collect();
+    let post_calls: String = (0..chunks.len())
+        .map(|j| format!("post_chunk{j}(e, &w, out);"))
+        .collect();
+    let _ = write!(
+        s,
+        r#"
+/// `ln Π_k T_k(x)` of every decomposition for scaled (and label-masked) evidence.
+fn log_parts(e: &Evidence, labels: &Labels) -> [f64; NUM_DECOMPOSITIONS] {{
+    let mut lp = [0.0f64; NUM_DECOMPOSITIONS];
+    {lp_calls}
+    lp
+}}
+
+/// `ln(1/D)`.
+fn ln_inv_d() -> f64 {{
+    -{P}ln64(NUM_DECOMPOSITIONS as f64)
+}}
+
+/// Natural log of the likelihood `S(α)` of the evidence, without validating it.
+/// Invalid evidence gives unspecified numbers (never a panic).
+pub fn log_likelihood_unchecked(e: &Evidence) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    labelled_log_likelihood_unchecked(&ALL_UNKNOWN, e)
+}}
+
+/// Natural log of the likelihood `S(α)` of the evidence (relative error about 1e-6 in
+/// `f32`: per-template rounding, `f64` accumulation over components).
+pub fn log_likelihood(e: &Evidence) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    {P}check_{t}(e, &PLACE_IDS)?;
+    log_likelihood_unchecked(e)
+}}
+
+/// Like [`labelled_log_likelihood`], without validating evidence or labels.
+pub fn labelled_log_likelihood_unchecked(labels: &Labels, e: &Evidence) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    let scale = {P}scale_{t}(e, labels);
+    let lp = log_parts(e, labels);
+    let l = scale + {P}lse64(&lp) + ln_inv_d();
+    if l > f64::NEG_INFINITY {{ Ok(l as {t}) }} else {{ Err(::graphspn_runtime::EvidenceError::ZeroLikelihood) }}
+}}
+
+/// Natural log of the likelihood of the evidence with every labelled place restricted
+/// to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are
+/// rejected as `WrongShape {{ place, expected: NUM_CLASSES, found: label }}`.
+pub fn labelled_log_likelihood(labels: &Labels, e: &Evidence) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    {P}check_{t}(e, &PLACE_IDS)?;
+    {P}check_labels(labels, NUM_CLASSES)?;
+    labelled_log_likelihood_unchecked(labels, e)
+}}
+
+/// Like [`marginals`], without validating the evidence.
+pub fn marginals_unchecked(e: &Evidence, out: &mut Marginals) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    let lp = log_parts(e, &ALL_UNKNOWN);
+    let lhat = {P}lse64(&lp) + ln_inv_d();
+    let l = {P}scale_{t}(e, &ALL_UNKNOWN) + lhat;
+    if !(l > f64::NEG_INFINITY) {{
+        return Err(::graphspn_runtime::EvidenceError::ZeroLikelihood);
+    }}
+    let w = {P}weights_{t}(&lp, lhat);
+    for row in out.iter_mut() {{
+        *row = [0.0; NUM_CLASSES];
+    }}
+    {post_calls}
+    Ok(l as {t})
+}}
+
+/// Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error
+/// about 1e-6 in `f32`) and returns the log-likelihood `ln S(α)`.
+pub fn marginals(e: &Evidence, out: &mut Marginals) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    {P}check_{t}(e, &PLACE_IDS)?;
+    marginals_unchecked(e, out)
+}}
+
+/// Like [`mpe`], without validating the evidence.
+pub fn mpe_unchecked(e: &Evidence, labels: &mut Labels) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    let mut lp = [0.0f64; NUM_DECOMPOSITIONS];
+    {mpv_calls}
+    let best = {P}argmax64(&lp);
+    let m = lp.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let v = {P}scale_{t}(e, &ALL_UNKNOWN) + m + ln_inv_d();
+    if !(v > f64::NEG_INFINITY) {{
+        return Err(::graphspn_runtime::EvidenceError::ZeroLikelihood);
+    }}
+    match best {{
+        {mpe_dispatch}
+        _ => {{}}
+    }}
+    Ok(v as {t})
+}}
+
+/// Writes the max-product (MPE) labelling into `labels` and returns its natural-log
+/// max-product value `max_d ln((1/D) Π_k maxprod T_k)`, ties broken towards the lowest
+/// decomposition and child index.
+pub fn mpe(e: &Evidence, labels: &mut Labels) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+    {P}check_{t}(e, &PLACE_IDS)?;
+    mpe_unchecked(e, labels)
+}}
+
+/// This map as a [`::graphspn_runtime::CompiledMap`], for code generic over compiled maps.
+pub struct Map;
+
+impl ::graphspn_runtime::CompiledMap for Map {{
+    type Scalar = {t};
+    type Row = [{t}; NUM_CLASSES];
+    const NUM_PLACES: usize = NUM_PLACES;
+    const NUM_CLASSES: usize = NUM_CLASSES;
+    const NUM_DECOMPOSITIONS: usize = NUM_DECOMPOSITIONS;
+    const PLACE_IDS: &'static [u32] = &PLACE_IDS;
+    const CLASS_NAMES: &'static [&'static str] = &CLASS_NAMES;
+    const ZERO_ROW: Self::Row = [0.0; NUM_CLASSES];
+    fn log_likelihood(e: &[Self::Row]) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+        self::log_likelihood({P}fixed(e)?)
+    }}
+    fn marginals(e: &[Self::Row], out: &mut [Self::Row]) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+        self::marginals({P}fixed(e)?, {P}fixed_mut(out)?)
+    }}
+    fn mpe(e: &[Self::Row], labels: &mut [u16]) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+        self::mpe({P}fixed(e)?, {P}fixed_mut(labels)?)
+    }}
+    fn labelled_log_likelihood(labels: &[u16], e: &[Self::Row]) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
+        self::labelled_log_likelihood({P}fixed(labels)?, {P}fixed(e)?)
+    }}
+}}
+"#
+    );
+    s
+}

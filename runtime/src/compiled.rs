@@ -1,0 +1,69 @@
+//! The trait every compiled map implements, so firmware can be generic over maps.
+
+use crate::EvidenceError;
+
+/// A GraphSPN instance compiled for one known map by `graphspn-compiler`.
+///
+/// Evidence is one row per place (place order, see [`CompiledMap::PLACE_IDS`]),
+/// each row holding one non-negative likelihood per class. Rows are the
+/// associated type [`CompiledMap::Row`] (`[Scalar; NUM_CLASSES]`), passed as slices
+/// so code generic over maps needs no const-generic arithmetic; a slice whose length
+/// is not [`CompiledMap::NUM_PLACES`] is rejected with [`EvidenceError::WrongShape`]
+/// (`place` = expected place count). Labels are class indices, `u16::MAX` = unknown.
+///
+/// All methods are allocation-free and never panic.
+pub trait CompiledMap {
+    /// The floating-point type of evidence and results (`f32` or `f64`).
+    type Scalar: Copy + PartialOrd + Default + core::fmt::Debug + 'static;
+    /// One row of evidence or marginals: `[Self::Scalar; NUM_CLASSES]`.
+    type Row: Copy + AsRef<[Self::Scalar]> + AsMut<[Self::Scalar]> + 'static;
+    /// Number of places of the map.
+    const NUM_PLACES: usize;
+    /// Number of classes per place.
+    const NUM_CLASSES: usize;
+    /// Number of decompositions mixed at the root (uniform weights).
+    const NUM_DECOMPOSITIONS: usize;
+    /// User-facing id of each place, in place order.
+    const PLACE_IDS: &'static [u32];
+    /// Class names, in class-index order.
+    const CLASS_NAMES: &'static [&'static str];
+    /// A row of zeros, to initialise evidence and marginal buffers in generic code.
+    const ZERO_ROW: Self::Row;
+
+    /// Natural log of the likelihood of the evidence, `ln S(α)`.
+    fn log_likelihood(e: &[Self::Row]) -> Result<Self::Scalar, EvidenceError>;
+
+    /// Writes `P(Y_p = c | α)` for every place into `out` and returns `ln S(α)`.
+    fn marginals(e: &[Self::Row], out: &mut [Self::Row]) -> Result<Self::Scalar, EvidenceError>;
+
+    /// Writes the max-product (MPE) labelling into `labels` and returns its
+    /// natural-log max-product value.
+    fn mpe(e: &[Self::Row], labels: &mut [u16]) -> Result<Self::Scalar, EvidenceError>;
+
+    /// Natural log of the likelihood of the evidence with every labelled place
+    /// restricted to its label (`u16::MAX` = unknown: the full row is used).
+    fn labelled_log_likelihood(
+        labels: &[u16],
+        e: &[Self::Row],
+    ) -> Result<Self::Scalar, EvidenceError>;
+}
+
+/// Converts a slice of rows into a fixed-size array reference, or reports
+/// [`EvidenceError::WrongShape`] (`place` = expected place count).
+pub fn fixed<T, const N: usize>(s: &[T]) -> Result<&[T; N], EvidenceError> {
+    s.try_into().map_err(|_| EvidenceError::WrongShape {
+        place: N,
+        expected: N,
+        found: s.len(),
+    })
+}
+
+/// Mutable version of [`fixed`].
+pub fn fixed_mut<T, const N: usize>(s: &mut [T]) -> Result<&mut [T; N], EvidenceError> {
+    let found = s.len();
+    s.try_into().map_err(|_| EvidenceError::WrongShape {
+        place: N,
+        expected: N,
+        found,
+    })
+}
