@@ -216,3 +216,66 @@ impl<R: Rng> Gen<'_, R> {
         self.builder.add_sum(children, w)
     }
 }
+
+/// A dense layered SPN for benchmarks and scaling tests (Poon–Domingos style over a
+/// balanced binary split of the variables): every region holds `width` sums; a
+/// single-variable region's sums mix that variable's `classes` leaves; a larger
+/// region's sums mix all `width²` products of one sum from each half; the root mixes
+/// the `width²` products of the top split. Weights are random (seeded) and
+/// normalised. About `(num_vars − 1)·(width³ + 2·width²) + num_vars·width·classes` edges.
+pub fn layered_spn(seed: u64, num_vars: usize, classes: u32, width: usize) -> Spn {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let num_vars = num_vars.max(1);
+    let width = width.max(1);
+    let mut b = SpnBuilder::new(vec![classes.max(1); num_vars]);
+    let mut weights = |n: usize, rng: &mut ChaCha8Rng| -> Vec<f64> {
+        let w: Vec<f64> = (0..n).map(|_| rng.random_range(0.01..1.0)).collect();
+        let t: f64 = w.iter().sum();
+        w.into_iter().map(|x| x / t).collect()
+    };
+    // Returns the region's sums, or (for the root region) the single root sum.
+    fn region(
+        b: &mut SpnBuilder,
+        rng: &mut ChaCha8Rng,
+        weights: &mut dyn FnMut(usize, &mut ChaCha8Rng) -> Vec<f64>,
+        vars: std::ops::Range<u32>,
+        width: usize,
+        root: bool,
+    ) -> Vec<NodeId> {
+        let n_sums = if root { 1 } else { width };
+        if vars.len() == 1 {
+            let k = b.classes()[vars.start as usize];
+            let leaves: Vec<NodeId> = (0..k).map(|c| b.add_leaf(vars.start, c)).collect();
+            return (0..n_sums)
+                .map(|_| {
+                    let w = weights(leaves.len(), rng);
+                    b.add_sum(leaves.clone(), w)
+                })
+                .collect();
+        }
+        let mid = vars.start + vars.len() as u32 / 2;
+        let left = region(b, rng, weights, vars.start..mid, width, false);
+        let right = region(b, rng, weights, mid..vars.end, width, false);
+        let mut products = Vec::with_capacity(left.len() * right.len());
+        for &l in &left {
+            for &r in &right {
+                products.push(b.add_product(vec![l, r]));
+            }
+        }
+        (0..n_sums)
+            .map(|_| {
+                let w = weights(products.len(), rng);
+                b.add_sum(products.clone(), w)
+            })
+            .collect()
+    }
+    let root = region(
+        &mut b,
+        &mut rng,
+        &mut weights,
+        0..num_vars as u32,
+        width,
+        true,
+    )[0];
+    b.finish_unchecked(root)
+}
