@@ -177,8 +177,8 @@ fn check_case(case_seed: u64, selective: bool) -> Result<Checked, String> {
     let params = RandomSpnParams {
         max_vars: 6,
         max_classes: 4,
-        max_depth: 4,
-        max_children: 3,
+        max_depth: 5,
+        max_children: 4,
         zero_weight_prob: 0.15,
         share_prob: 0.3,
         selective,

@@ -92,6 +92,7 @@ pub struct Evaluator {
     slot_log: Vec<f64>,
     val: Vec<f64>,
     flow: Vec<f64>,
+    slot_acc: Vec<f64>,
     arg: Vec<u32>,
     stack: Vec<u32>,
 }
@@ -148,6 +149,7 @@ impl Evaluator {
             slot_log: vec![0.0; total],
             val: vec![0.0; n],
             flow: vec![0.0; n],
+            slot_acc: vec![0.0; total],
             arg: vec![0; n],
             stack: Vec::new(),
         })
@@ -274,7 +276,7 @@ impl Evaluator {
         let n = self.kind.len();
         self.flow.iter_mut().for_each(|f| *f = 0.0);
         self.flow[self.root] = 1.0;
-        let mut flat = vec![0.0; self.slot_log.len()];
+        self.slot_acc.iter_mut().for_each(|p| *p = 0.0);
         for i in (0..n).rev() {
             let f = self.flow[i];
             if f == 0.0 {
@@ -282,7 +284,7 @@ impl Evaluator {
             }
             let (s, e) = (self.edge_start[i] as usize, self.edge_start[i + 1] as usize);
             match self.kind[i] {
-                LEAF => flat[self.leaf_slot[i] as usize] += f,
+                LEAF => self.slot_acc[self.leaf_slot[i] as usize] += f,
                 SUM => {
                     // f > 0 implies v(i) > 0, so val[i] is finite.
                     let vi = self.val[i];
@@ -304,7 +306,7 @@ impl Evaluator {
             .enumerate()
             .map(|(v, &k)| {
                 let base = self.slot_start[v];
-                let mut row = flat[base..base + k as usize].to_vec();
+                let mut row = self.slot_acc[base..base + k as usize].to_vec();
                 let total: f64 = row.iter().sum();
                 if total > 0.0 {
                     row.iter_mut().for_each(|p| *p /= total);

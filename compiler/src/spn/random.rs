@@ -69,11 +69,14 @@ pub fn random_spn_with_rng<R: Rng>(rng: &mut R, params: &RandomSpnParams) -> Spn
     g.builder.finish_unchecked(root)
 }
 
+/// Scope variables and, for each, the classes its leaves may use.
+type SupportKey = (Vec<u32>, Vec<Vec<u32>>);
+
 struct Gen<'a, R: Rng> {
     rng: &'a mut R,
     params: &'a RandomSpnParams,
     builder: SpnBuilder,
-    cache: HashMap<(Vec<u32>, Vec<Vec<u32>>), Vec<NodeId>>,
+    cache: HashMap<SupportKey, Vec<NodeId>>,
 }
 
 impl<R: Rng> Gen<'_, R> {
