@@ -64,3 +64,13 @@ impl Spn {
             .sum()
     }
 }
+
+pub mod builder;
+pub mod format;
+pub mod random;
+pub mod validate;
+
+pub use builder::SpnBuilder;
+pub use format::{SPN_FORMAT_VERSION, SpnFormatError};
+pub use random::{RandomSpnParams, random_spn};
+pub use validate::SpnError;
