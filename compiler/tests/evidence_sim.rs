@@ -89,8 +89,8 @@ fn same_seed_same_evidence_and_placeholders_get_none() {
     let c = simulate_evidence(&truth, C, &ph, &p, 10).unwrap();
     assert_eq!(a, b);
     assert_ne!(a.rows, c.rows);
-    for i in 0..50 {
-        if ph[i] {
+    for (i, &p) in ph.iter().enumerate() {
+        if p {
             assert!(a.rows[i].iter().all(|&x| x == 0.1));
             assert!(!a.wrong[i]);
         }

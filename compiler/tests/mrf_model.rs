@@ -47,7 +47,11 @@ fn pair_counts_match_hand_count() {
     let p: Vec<f64> = expected.iter().map(|n| n / 8.0).collect();
     assert_eq!(m.potential(), p.as_slice());
     // Pseudo-count 1 and PMI: p(a,b) = (n+1)/17, marginals of that table.
-    let pmi = Mrf2::train(&[hand_map()], &CooccurrenceParams::default()).unwrap();
+    let pmi_params = CooccurrenceParams {
+        pseudo_count: 1.0,
+        normalisation: Normalisation::Pmi,
+    };
+    let pmi = Mrf2::train(&[hand_map()], &pmi_params).unwrap();
     let q: Vec<f64> = expected.iter().map(|n| (n + 1.0) / 17.0).collect();
     let marg: Vec<f64> = (0..3).map(|a| (0..3).map(|b| q[a * 3 + b]).sum()).collect();
     for a in 0..3 {

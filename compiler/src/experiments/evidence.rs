@@ -470,9 +470,12 @@ pub fn level_statistics(
     })
 }
 
+/// One row of Table 1: `(level, D_groundtruth (mean, std), D_incorrect (mean, std))`.
+pub type Table1Row = (u8, (f64, f64), (f64, f64));
+
 /// The paper's Table 1: `(level, D_groundtruth (mean, std), D_incorrect (mean, std))`.
 /// NL1's `D_incorrect` is listed as `0.0` without a std.
-pub const PAPER_TABLE1: [(u8, (f64, f64), (f64, f64)); 6] = [
+pub const PAPER_TABLE1: [Table1Row; 6] = [
     (1, (0.991, 0.001), (0.0, 0.0)),
     (2, (0.913, 0.015), (0.085, 0.056)),
     (3, (0.720, 0.040), (0.090, 0.061)),

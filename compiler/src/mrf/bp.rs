@@ -43,6 +43,9 @@
 //! (`d_i` = number of factors on `i`, `0 · ln 0 = 0`), and `log Z_Bethe = −F`.
 //! On a tree (acyclic factor graph) at convergence this equals the exact `ln Z`.
 
+// Message code walks several parallel arrays by state index; index loops read best.
+#![allow(clippy::needless_range_loop)]
+
 use super::MrfError;
 use super::factor_graph::FactorGraph;
 
@@ -237,6 +240,21 @@ impl<'a> Bp<'a> {
         for (e, &v) in edge_var.iter().enumerate() {
             let u = -(cards[v] as f64).ln();
             f2v[edge_off[e]..edge_off[e] + cards[v]].fill(u);
+        }
+        // A unary factor's outgoing message never depends on other messages: start
+        // it at its final value (the normalised table), so evidence is felt from
+        // the first update on. Otherwise the first sweep propagates the pairwise
+        // prior alone and can lock BP into an evidence-free fixed point.
+        for (a, f) in fg.factors().iter().enumerate() {
+            if f.vars().len() == 1 {
+                let lse = log_sum_exp(&factors[a].log);
+                if lse > f64::NEG_INFINITY {
+                    let o = edge_off[factors[a].first_edge];
+                    for (x, l) in factors[a].log.iter().enumerate() {
+                        f2v[o + x] = l - lse;
+                    }
+                }
+            }
         }
         let v2f = vec![0.0; off];
         Ok(Bp {
