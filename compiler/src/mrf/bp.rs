@@ -48,6 +48,8 @@
 
 use super::MrfError;
 use super::factor_graph::FactorGraph;
+use std::collections::BTreeMap;
+use std::sync::Arc;
 
 /// Largest arity of a factor BP accepts.
 pub const MAX_ARITY: usize = 3;
@@ -129,9 +131,9 @@ struct FactorData {
     /// `cards` of `vars`.
     cards: Vec<usize>,
     /// Table scaled to max 1.
-    lin: Vec<f64>,
+    lin: Arc<[f64]>,
     /// Natural log of the table.
-    log: Vec<f64>,
+    log: Arc<[f64]>,
     /// Some positive entry is below `exp(-690/arity)` of the max: always use the log path.
     wide: bool,
     /// First edge id of this factor (edges of a factor are consecutive).
@@ -203,6 +205,8 @@ impl<'a> Bp<'a> {
         let mut edge_var = Vec::new();
         let mut var_edges = vec![Vec::new(); fg.num_vars()];
         let mut off = 0;
+        let mut prepared: BTreeMap<(usize, usize), (Arc<[f64]>, Arc<[f64]>, bool)> =
+            BTreeMap::new();
         for (a, f) in fg.factors().iter().enumerate() {
             let arity = f.vars().len();
             if arity > MAX_ARITY {
@@ -212,14 +216,23 @@ impl<'a> Bp<'a> {
                     max: MAX_ARITY,
                 });
             }
-            let max = f.table().iter().cloned().fold(0.0, f64::max);
-            let lin: Vec<f64> = if max > 0.0 {
-                f.table().iter().map(|&x| x / max).collect()
-            } else {
-                vec![0.0; f.table().len()]
-            };
-            let limit = (-690.0 / arity as f64).exp();
-            let wide = lin.iter().any(|&x| x > 0.0 && x < limit);
+            // Prepare each distinct (shared) table once.
+            let key = (Arc::as_ptr(f.shared_table()) as *const f64 as usize, arity);
+            let (lin, log, wide) = prepared
+                .entry(key)
+                .or_insert_with(|| {
+                    let max = f.table().iter().cloned().fold(0.0, f64::max);
+                    let lin: Arc<[f64]> = if max > 0.0 {
+                        f.table().iter().map(|&x| x / max).collect()
+                    } else {
+                        vec![0.0; f.table().len()].into()
+                    };
+                    let limit = (-690.0 / arity as f64).exp();
+                    let wide = lin.iter().any(|&x| x > 0.0 && x < limit);
+                    let log: Arc<[f64]> = f.table().iter().map(|x| x.ln()).collect();
+                    (lin, log, wide)
+                })
+                .clone();
             let first_edge = edge_off.len();
             for &v in f.vars() {
                 var_edges[v].push(edge_off.len());
@@ -231,7 +244,7 @@ impl<'a> Bp<'a> {
                 vars: f.vars().to_vec(),
                 cards: f.vars().iter().map(|&v| cards[v]).collect(),
                 lin,
-                log: f.table().iter().map(|x| x.ln()).collect(),
+                log,
                 wide,
                 first_edge,
             });
@@ -484,33 +497,54 @@ impl<'a> Bp<'a> {
             free_energy -= (d - 1.0) * neg_entropy;
             marginals.push(b);
         }
+        let mut u: Vec<f64> = Vec::new();
         for (a, fd) in self.factors.iter().enumerate() {
-            // u(x) = Σ_k v2f_k(x_k); ln b_a(x) = ln f(x) + u(x) − lse.
-            let n = fd.log.len();
-            let mut u = vec![0.0; n];
-            let mut x = vec![0usize; fd.vars.len()];
-            for ux in u.iter_mut() {
-                for (k, &xk) in x.iter().enumerate() {
-                    *ux += self.v2f[self.edge_off[fd.first_edge + k] + xk];
+            // u(x) = Σ_k v2f_k(x_k); ln b_a(x) = ln f(x) + u(x) − lse, and
+            // Σ_x b (ln b − ln f) = Σ_x b (u − lse) (no cancellation with ln f).
+            u.clear();
+            let arity = fd.vars.len();
+            let m: Vec<&[f64]> = (0..arity)
+                .map(|k| {
+                    let o = self.edge_off[fd.first_edge + k];
+                    &self.v2f[o..o + fd.cards[k]]
+                })
+                .collect();
+            match arity {
+                1 => u.extend_from_slice(m[0]),
+                2 => {
+                    for &a0 in m[0] {
+                        u.extend(m[1].iter().map(|&a1| a0 + a1));
+                    }
                 }
-                super::factor_graph::odometer(&mut x, &fd.cards);
+                _ => {
+                    for &a0 in m[0] {
+                        for &a1 in m[1] {
+                            u.extend(m[2].iter().map(|&a2| a0 + a1 + a2));
+                        }
+                    }
+                }
             }
-            let logb: Vec<f64> = fd.log.iter().zip(&u).map(|(lf, ux)| lf + ux).collect();
-            let lse = log_sum_exp(&logb);
-            if lse == f64::NEG_INFINITY {
+            let mut mx = f64::NEG_INFINITY;
+            for (lf, ux) in fd.log.iter().zip(u.iter()) {
+                mx = mx.max(lf + ux);
+            }
+            if mx == f64::NEG_INFINITY {
                 return Err(MrfError::Contradiction {
                     var: fd.vars[0],
                     factor: Some(a),
                     iteration: it,
                 });
             }
-            for j in 0..n {
-                let b = (logb[j] - lse).exp();
-                if b > 0.0 {
-                    // ln b − ln f = u − lse (no cancellation with ln f).
-                    free_energy += b * (u[j] - lse);
+            let (mut z, mut zu) = (0.0, 0.0);
+            for (lf, ux) in fd.log.iter().zip(u.iter()) {
+                let e = (lf + ux - mx).exp();
+                if e > 0.0 {
+                    z += e;
+                    zu += e * ux;
                 }
             }
+            let lse = mx + z.ln();
+            free_energy += zu / z - lse;
         }
         Ok((marginals, -free_energy))
     }

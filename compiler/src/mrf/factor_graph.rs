@@ -2,6 +2,7 @@
 //! non-negative factors given as dense tables.
 
 use super::MrfError;
+use std::sync::Arc;
 
 /// Largest number of entries a single factor table may have.
 pub const MAX_FACTOR_ENTRIES: usize = 1 << 24;
@@ -14,7 +15,7 @@ pub const MAX_FACTOR_ENTRIES: usize = 1 << 24;
 #[derive(Clone, Debug, PartialEq)]
 pub struct Factor {
     vars: Vec<usize>,
-    table: Vec<f64>,
+    table: Arc<[f64]>,
 }
 
 impl Factor {
@@ -25,6 +26,11 @@ impl Factor {
 
     /// The dense table (row-major, last variable fastest).
     pub fn table(&self) -> &[f64] {
+        &self.table
+    }
+
+    /// The shared table (factors added with the same `Arc` share one allocation).
+    pub fn shared_table(&self) -> &Arc<[f64]> {
         &self.table
     }
 }
@@ -69,6 +75,17 @@ impl FactorGraph {
     /// Adds a factor over distinct, existing `vars` (at least one) with a table of
     /// `∏ cards` finite, non-negative entries; returns its factor id.
     pub fn add_factor(&mut self, vars: Vec<usize>, table: Vec<f64>) -> Result<usize, MrfError> {
+        self.add_factor_shared(vars, table.into())
+    }
+
+    /// [`FactorGraph::add_factor`] with a shared table: many factors (e.g. one
+    /// potential on every edge) can use one allocation, and belief propagation
+    /// prepares each distinct table only once.
+    pub fn add_factor_shared(
+        &mut self,
+        vars: Vec<usize>,
+        table: Arc<[f64]>,
+    ) -> Result<usize, MrfError> {
         let id = self.factors.len();
         if vars.is_empty() {
             return Err(MrfError::EmptyFactor { factor: id });

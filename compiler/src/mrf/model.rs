@@ -56,6 +56,7 @@ use super::MrfError;
 use super::bp::{BpOptions, BpResult, loopy_bp};
 use super::factor_graph::FactorGraph;
 use crate::map::{ClassId, TopoMap};
+use std::sync::Arc;
 
 /// How co-occurrence frequencies become potentials; see the module docs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -309,7 +310,7 @@ fn potentials_from_counts(
 pub struct Mrf2 {
     num_classes: usize,
     counts: Vec<f64>,
-    potential: Vec<f64>,
+    potential: Arc<[f64]>,
 }
 
 impl Mrf2 {
@@ -327,7 +328,7 @@ impl Mrf2 {
                 }
             }
         }
-        let potential = potentials_from_counts(&counts, c, 2, params);
+        let potential = potentials_from_counts(&counts, c, 2, params).into();
         Ok(Mrf2 {
             num_classes: c,
             counts,
@@ -353,7 +354,7 @@ impl MrfModel for Mrf2 {
 
     fn add_dependency_factors(&self, map: &TopoMap, fg: &mut FactorGraph) -> Result<(), MrfError> {
         for [a, b] in edges_sorted(map) {
-            fg.add_factor(vec![a, b], self.potential.clone())?;
+            fg.add_factor_shared(vec![a, b], self.potential.clone())?;
         }
         Ok(())
     }
@@ -365,7 +366,7 @@ impl MrfModel for Mrf2 {
 pub struct Mrf3 {
     num_classes: usize,
     counts: Vec<f64>,
-    potential: Vec<f64>,
+    potential: Arc<[f64]>,
 }
 
 impl Mrf3 {
@@ -384,7 +385,7 @@ impl Mrf3 {
                 }
             }
         }
-        let potential = potentials_from_counts(&counts, c, 3, params);
+        let potential = potentials_from_counts(&counts, c, 3, params).into();
         Ok(Mrf3 {
             num_classes: c,
             counts,
@@ -410,7 +411,7 @@ impl MrfModel for Mrf3 {
 
     fn add_dependency_factors(&self, map: &TopoMap, fg: &mut FactorGraph) -> Result<(), MrfError> {
         for [a, p, b] in connected_triples(map) {
-            fg.add_factor(vec![a, p, b], self.potential.clone())?;
+            fg.add_factor_shared(vec![a, p, b], self.potential.clone())?;
         }
         Ok(())
     }
