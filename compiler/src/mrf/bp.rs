@@ -125,6 +125,9 @@ pub struct BpResult {
     pub log_z_bethe: f64,
 }
 
+/// A table prepared for BP: scaled to max 1, its log, and whether it is "wide".
+type PreparedTable = (Arc<[f64]>, Arc<[f64]>, bool);
+
 /// Precomputed per-factor data.
 struct FactorData {
     vars: Vec<usize>,
@@ -205,8 +208,7 @@ impl<'a> Bp<'a> {
         let mut edge_var = Vec::new();
         let mut var_edges = vec![Vec::new(); fg.num_vars()];
         let mut off = 0;
-        let mut prepared: BTreeMap<(usize, usize), (Arc<[f64]>, Arc<[f64]>, bool)> =
-            BTreeMap::new();
+        let mut prepared: BTreeMap<(usize, usize), PreparedTable> = BTreeMap::new();
         for (a, f) in fg.factors().iter().enumerate() {
             let arity = f.vars().len();
             if arity > MAX_ARITY {
