@@ -1,1 +1,3 @@
 //! Evidence simulation and the paper's experiments.
+
+pub mod evidence;

@@ -1,0 +1,418 @@
+//! The paper's MRF baselines on a topological map.
+//!
+//! Both models have one variable `Y_i` per place (node index = place order) with
+//! `C` states, and a unary factor `φ_i(c) = α_i^c` (the local evidence row).
+//!
+//! - [`Mrf2`]: one pairwise factor `ψ(Y_a, Y_b)` on every undirected edge.
+//! - [`Mrf3`]: one three-variable factor `ψ(Y_A, Y_P, Y_B)` on every *connected
+//!   triple*: every path `A–P–B`, i.e. every unordered pair `{A, B}` of
+//!   neighbours of every pivot `P` (the paper's Three template, where `A` and `B`
+//!   may also be adjacent). The factor's variable order is `[A, P, B]` with
+//!   `A < B`; the potential is symmetric in `A ↔ B`, so the order of the two ends
+//!   does not matter. **Triangles:** in a triangle `{X, Y, Z}` each of the three
+//!   nodes is the pivot of one path, so the triangle yields three factors over
+//!   the same variable set, each with a different variable in the pivot role.
+//!   We keep all three: they are different relations ("X between Y and Z" is not
+//!   "Y between X and Z"), this matches how training triples are counted (every
+//!   path through every pivot), and it matches the paper's "three connected
+//!   nodes in any configuration". COLD maps have many triangles (diagonal
+//!   neighbours 1.13 m apart), so this does give those cliques more weight.
+//!
+//! # Potentials from co-occurrence counts
+//!
+//! Training counts every edge of every training map in both orientations
+//! (a symmetric `C × C` table) and every path `A–P–B` in both orientations
+//! `(A, P, B)` and `(B, P, A)` (a `C × C × C` table, symmetric in its ends).
+//! Places without a ground-truth class are skipped. A pseudo-count is added to
+//! every cell. With `p(·)` the resulting joint frequencies, the potential is
+//! ([`Normalisation`]):
+//!
+//! - `Joint` (default): `ψ = p(a, b)` (or `p(a, p, b)`): plain co-occurrence
+//!   frequencies.
+//! - `Pmi`: `ψ(a, b) = p(a, b) / (p(a) p(b))` and
+//!   `ψ(a, p, b) = p(a, p, b) / (p_A(a) p_P(p) p_B(b))`, with the marginals of
+//!   the same table. Rationale: the paper's unary `α_i^c` is
+//!   `P(Y_i = c, X_i = x_i)` and already contains the class prior. For a
+//!   tree-shaped map the exact joint is
+//!   `∏_i P(x_i | y_i) · ∏_edges p(a, b) / ∏_i p(y_i)^(d_i − 1)`, which equals
+//!   `∏_i α_i(y_i) · ∏_edges p(a, b) / (p(a) p(b))`, so PMI-style potentials are
+//!   the correct ones *on trees*; joint frequencies count the class prior once
+//!   more per incident edge, which favours the dominant class (corridor).
+//!
+//! Why `Joint` is the default: measured on COLD (train Saarbrücken +
+//! Stockholm, 3 Freiburg maps, `tests/mrf_cold.rs`), MRF-2 with PMI is better
+//! at NL1–2 (≈ 0.98–1.0 vs 0.82–0.99) but on these loopy graphs the large
+//! self-affinity of rare classes (`ψ(LO, LO) ≈ 35`, `ψ(BA, BA) ≈ 34` vs
+//! `ψ(CR, CR) ≈ 2.7`) takes over from NL3 on and BP converges to one rare class
+//! everywhere (accuracy ≈ 0.1), while with `Joint` it converges to the corridor
+//! everywhere (≈ 0.58, the corridor share) — better on average over the six
+//! levels, and the failure mode the paper reports. Experiments should report
+//! both normalisations.
+//!
+//! The default pseudo-count is 1 per cell (Laplace), which keeps every
+//! potential positive, so an unseen class pair is unlikely but never impossible.
+
+use super::MrfError;
+use super::bp::{BpOptions, BpResult, loopy_bp};
+use super::factor_graph::FactorGraph;
+use crate::map::{ClassId, TopoMap};
+use std::sync::Arc;
+
+/// How co-occurrence frequencies become potentials; see the module docs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Normalisation {
+    /// Joint frequency divided by the product of its marginals (PMI-style ratio).
+    Pmi,
+    /// Joint frequency.
+    #[default]
+    Joint,
+}
+
+/// Training options for [`Mrf2`] and [`Mrf3`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CooccurrenceParams {
+    /// Added to every cell of the count table (≥ 0, finite; > 0 keeps all potentials positive).
+    pub pseudo_count: f64,
+    /// Frequencies → potentials.
+    pub normalisation: Normalisation,
+}
+
+impl Default for CooccurrenceParams {
+    /// Pseudo-count 1, joint-frequency normalisation.
+    fn default() -> Self {
+        CooccurrenceParams {
+            pseudo_count: 1.0,
+            normalisation: Normalisation::Joint,
+        }
+    }
+}
+
+/// Result of [`MrfModel::log_likelihood_labelled`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct LabelledLikelihood {
+    /// `ln score(labels) − log Z_Bethe` (natural log), without evidence.
+    pub log_likelihood: f64,
+    /// The BP run that gave `log Z_Bethe` (check `converged`).
+    pub bp: BpResult,
+}
+
+/// Common interface of [`Mrf2`] and [`Mrf3`].
+pub trait MrfModel {
+    /// Number of classes `C`.
+    fn num_classes(&self) -> usize;
+
+    /// Adds the dependency factors (pairwise or triple) of `map` to `fg`.
+    fn add_dependency_factors(&self, map: &TopoMap, fg: &mut FactorGraph) -> Result<(), MrfError>;
+
+    /// The factor graph of `map`: one variable per place, the dependency
+    /// factors, then (if given) one unary factor per place holding its evidence
+    /// row (`evidence[i][c] = α_i^c`, finite, ≥ 0, not all zero).
+    fn factor_graph(
+        &self,
+        map: &TopoMap,
+        evidence: Option<&[Vec<f64>]>,
+    ) -> Result<FactorGraph, MrfError> {
+        let c = self.num_classes();
+        check_map(map, c)?;
+        let n = map.num_places();
+        let mut fg = FactorGraph::new(vec![c; n])?;
+        self.add_dependency_factors(map, &mut fg)?;
+        if let Some(ev) = evidence {
+            if ev.len() != n {
+                return Err(MrfError::BadInput(format!(
+                    "map {}: {} evidence rows for {n} places",
+                    map.name,
+                    ev.len()
+                )));
+            }
+            for (i, row) in ev.iter().enumerate() {
+                let pid = map.place(i).id;
+                if row.len() != c {
+                    return Err(MrfError::BadInput(format!(
+                        "map {}, place {pid}: evidence row has {} values, expected {c}",
+                        map.name,
+                        row.len()
+                    )));
+                }
+                if row.iter().any(|x| !x.is_finite() || *x < 0.0) || row.iter().all(|&x| x == 0.0) {
+                    return Err(MrfError::BadInput(format!(
+                        "map {}, place {pid}: evidence must be finite, ≥ 0 and not all zero, got {row:?}",
+                        map.name
+                    )));
+                }
+                fg.add_factor(vec![i], row.clone())?;
+            }
+        }
+        Ok(fg)
+    }
+
+    /// Marginals `P(Y_i | evidence)` by loopy BP.
+    fn infer(
+        &self,
+        map: &TopoMap,
+        evidence: &[Vec<f64>],
+        opts: &BpOptions,
+    ) -> Result<BpResult, MrfError> {
+        let fg = self.factor_graph(map, Some(evidence))?;
+        loopy_bp(&fg, opts)
+    }
+
+    /// Log-likelihood of a full labelling without evidence (for novelty
+    /// detection): `ln ∏ ψ(labels) − log Z_Bethe`. Only as good as the Bethe
+    /// approximation (exact on trees); check `bp.converged`.
+    fn log_likelihood_labelled(
+        &self,
+        map: &TopoMap,
+        labels: &[ClassId],
+        opts: &BpOptions,
+    ) -> Result<LabelledLikelihood, MrfError> {
+        let fg = self.factor_graph(map, None)?;
+        if labels.len() != map.num_places() {
+            return Err(MrfError::BadInput(format!(
+                "map {}: {} labels for {} places",
+                map.name,
+                labels.len(),
+                map.num_places()
+            )));
+        }
+        let x: Vec<usize> = labels.iter().map(|&l| l as usize).collect();
+        let score = fg.log_score(&x)?;
+        let bp = loopy_bp(&fg, opts)?;
+        Ok(LabelledLikelihood {
+            log_likelihood: score - bp.log_z_bethe,
+            bp,
+        })
+    }
+}
+
+fn check_map(map: &TopoMap, c: usize) -> Result<(), MrfError> {
+    if map.classes.len() != c {
+        return Err(MrfError::BadInput(format!(
+            "map {} has {} classes, the model {c}",
+            map.name,
+            map.classes.len()
+        )));
+    }
+    Ok(())
+}
+
+fn check_params(p: &CooccurrenceParams) -> Result<(), MrfError> {
+    if !(p.pseudo_count.is_finite() && p.pseudo_count >= 0.0) {
+        return Err(MrfError::BadOptions(format!(
+            "pseudo_count must be finite and ≥ 0, got {}",
+            p.pseudo_count
+        )));
+    }
+    Ok(())
+}
+
+fn num_classes_of(maps: &[TopoMap]) -> Result<usize, MrfError> {
+    let first = maps
+        .first()
+        .ok_or_else(|| MrfError::BadInput("no training maps".into()))?;
+    let c = first.classes.len();
+    for m in maps {
+        check_map(m, c)?;
+    }
+    Ok(c)
+}
+
+/// Ground-truth class of every place (checked against `c`).
+fn classes_of(map: &TopoMap, c: usize) -> Result<Vec<Option<usize>>, MrfError> {
+    map.places()
+        .map(|p| match p.class {
+            Some(k) if (k as usize) < c => Ok(Some(k as usize)),
+            Some(k) => Err(MrfError::BadInput(format!(
+                "map {}, place {}: class {k} out of range ({c} classes)",
+                map.name, p.id
+            ))),
+            None => Ok(None),
+        })
+        .collect()
+}
+
+/// Every connected triple `(A, P, B)` of a map: pivot `P`, neighbours `A < B`;
+/// sorted by pivot, then `A`, then `B`.
+pub fn connected_triples(map: &TopoMap) -> Vec<[usize; 3]> {
+    let mut out = Vec::new();
+    for p in 0..map.num_places() {
+        let nb = map.neighbors(p);
+        for (j, &a) in nb.iter().enumerate() {
+            for &b in &nb[j + 1..] {
+                out.push([a, p, b]);
+            }
+        }
+    }
+    out
+}
+
+/// Every undirected edge `(a, b)` with `a < b`, sorted.
+pub fn edges_sorted(map: &TopoMap) -> Vec<[usize; 2]> {
+    let mut out = Vec::new();
+    for a in 0..map.num_places() {
+        for b in map.neighbors(a) {
+            if a < b {
+                out.push([a, b]);
+            }
+        }
+    }
+    out
+}
+
+/// Joint frequencies (with pseudo-count) → potentials, for a table whose axes all have `c` states.
+fn potentials_from_counts(
+    counts: &[f64],
+    c: usize,
+    arity: u32,
+    p: &CooccurrenceParams,
+) -> Vec<f64> {
+    let total: f64 = counts.iter().sum::<f64>() + p.pseudo_count * counts.len() as f64;
+    let joint: Vec<f64> = if total > 0.0 {
+        counts
+            .iter()
+            .map(|&n| (n + p.pseudo_count) / total)
+            .collect()
+    } else {
+        vec![1.0 / counts.len() as f64; counts.len()]
+    };
+    match p.normalisation {
+        Normalisation::Joint => joint,
+        Normalisation::Pmi => {
+            // Marginal of every axis.
+            let mut marg = vec![vec![0.0; c]; arity as usize];
+            for (idx, &q) in joint.iter().enumerate() {
+                let mut r = idx;
+                for k in (0..arity as usize).rev() {
+                    marg[k][r % c] += q;
+                    r /= c;
+                }
+            }
+            joint
+                .iter()
+                .enumerate()
+                .map(|(idx, &q)| {
+                    let mut r = idx;
+                    let mut denom = 1.0;
+                    for k in (0..arity as usize).rev() {
+                        denom *= marg[k][r % c];
+                        r /= c;
+                    }
+                    // A zero marginal means the whole slice is zero: potential 0.
+                    if denom > 0.0 { q / denom } else { 0.0 }
+                })
+                .collect()
+        }
+    }
+}
+
+/// MRF with a pairwise co-occurrence potential on every edge (the paper's MRF-2).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mrf2 {
+    num_classes: usize,
+    counts: Vec<f64>,
+    potential: Arc<[f64]>,
+}
+
+impl Mrf2 {
+    /// Counts class pairs over the edges of the training maps (both orientations).
+    pub fn train(maps: &[TopoMap], params: &CooccurrenceParams) -> Result<Self, MrfError> {
+        check_params(params)?;
+        let c = num_classes_of(maps)?;
+        let mut counts = vec![0.0; c * c];
+        for m in maps {
+            let cls = classes_of(m, c)?;
+            for [a, b] in edges_sorted(m) {
+                if let (Some(x), Some(y)) = (cls[a], cls[b]) {
+                    counts[x * c + y] += 1.0;
+                    counts[y * c + x] += 1.0;
+                }
+            }
+        }
+        let potential = potentials_from_counts(&counts, c, 2, params).into();
+        Ok(Mrf2 {
+            num_classes: c,
+            counts,
+            potential,
+        })
+    }
+
+    /// Raw pair counts, `counts[a * C + b]` (symmetric; every edge counted in both orientations).
+    pub fn counts(&self) -> &[f64] {
+        &self.counts
+    }
+
+    /// The pairwise potential `ψ(a, b)` at `[a * C + b]`.
+    pub fn potential(&self) -> &[f64] {
+        &self.potential
+    }
+}
+
+impl MrfModel for Mrf2 {
+    fn num_classes(&self) -> usize {
+        self.num_classes
+    }
+
+    fn add_dependency_factors(&self, map: &TopoMap, fg: &mut FactorGraph) -> Result<(), MrfError> {
+        for [a, b] in edges_sorted(map) {
+            fg.add_factor_shared(vec![a, b], self.potential.clone())?;
+        }
+        Ok(())
+    }
+}
+
+/// MRF with a three-variable co-occurrence potential on every connected triple
+/// `A–P–B` (the paper's MRF-3); see the module docs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mrf3 {
+    num_classes: usize,
+    counts: Vec<f64>,
+    potential: Arc<[f64]>,
+}
+
+impl Mrf3 {
+    /// Counts class triples `(A, P, B)` over every path `A–P–B` of the training
+    /// maps, in both orientations `(A, P, B)` and `(B, P, A)`.
+    pub fn train(maps: &[TopoMap], params: &CooccurrenceParams) -> Result<Self, MrfError> {
+        check_params(params)?;
+        let c = num_classes_of(maps)?;
+        let mut counts = vec![0.0; c * c * c];
+        for m in maps {
+            let cls = classes_of(m, c)?;
+            for [a, p, b] in connected_triples(m) {
+                if let (Some(x), Some(y), Some(z)) = (cls[a], cls[p], cls[b]) {
+                    counts[(x * c + y) * c + z] += 1.0;
+                    counts[(z * c + y) * c + x] += 1.0;
+                }
+            }
+        }
+        let potential = potentials_from_counts(&counts, c, 3, params).into();
+        Ok(Mrf3 {
+            num_classes: c,
+            counts,
+            potential,
+        })
+    }
+
+    /// Raw triple counts at `[(a * C + p) * C + b]` (ends `a`, `b`, pivot `p`).
+    pub fn counts(&self) -> &[f64] {
+        &self.counts
+    }
+
+    /// The potential `ψ(a, p, b)` at `[(a * C + p) * C + b]`.
+    pub fn potential(&self) -> &[f64] {
+        &self.potential
+    }
+}
+
+impl MrfModel for Mrf3 {
+    fn num_classes(&self) -> usize {
+        self.num_classes
+    }
+
+    fn add_dependency_factors(&self, map: &TopoMap, fg: &mut FactorGraph) -> Result<(), MrfError> {
+        for [a, p, b] in connected_triples(map) {
+            fg.add_factor_shared(vec![a, p, b], self.potential.clone())?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,172 @@
+//! MRF-2 / MRF-3 construction on small hand-made maps, checked by hand and
+//! against brute-force enumeration.
+
+use graphspn_compiler::map::{ClassId, ClassSet, Place, TopoMap};
+use graphspn_compiler::mrf::model::connected_triples;
+use graphspn_compiler::mrf::{
+    BpOptions, CooccurrenceParams, Mrf2, Mrf3, MrfModel, Normalisation, exact_inference,
+};
+use petgraph::graph::UnGraph;
+
+fn map(classes: &[ClassId], edges: &[(u32, u32)]) -> TopoMap {
+    let mut g = UnGraph::new_undirected();
+    for (i, &c) in classes.iter().enumerate() {
+        g.add_node(Place {
+            id: 100 + i as u32,
+            class: Some(c),
+            placeholder: false,
+            x: i as f64,
+            y: 0.0,
+        });
+    }
+    for &(a, b) in edges {
+        g.add_edge(a.into(), b.into(), ());
+    }
+    TopoMap {
+        name: "hand".into(),
+        classes: ClassSet::new(vec!["A".into(), "B".into(), "C".into()]).unwrap(),
+        graph: g,
+    }
+}
+
+/// Classes [A, B, B, C]; edges 0-1, 1-2, 2-3, 1-3 (a triangle 1-2-3).
+fn hand_map() -> TopoMap {
+    map(&[0, 1, 1, 2], &[(0, 1), (1, 2), (2, 3), (1, 3)])
+}
+
+#[test]
+fn pair_counts_match_hand_count() {
+    let joint0 = CooccurrenceParams {
+        pseudo_count: 0.0,
+        normalisation: Normalisation::Joint,
+    };
+    let m = Mrf2::train(&[hand_map()], &joint0).unwrap();
+    // Edges (A,B), (B,B), (B,C), (B,C), each in both orientations.
+    let expected = [0.0, 1.0, 0.0, 1.0, 2.0, 2.0, 0.0, 2.0, 0.0];
+    assert_eq!(m.counts(), &expected);
+    let p: Vec<f64> = expected.iter().map(|n| n / 8.0).collect();
+    assert_eq!(m.potential(), p.as_slice());
+    // Pseudo-count 1 and PMI: p(a,b) = (n+1)/17, marginals of that table.
+    let pmi_params = CooccurrenceParams {
+        pseudo_count: 1.0,
+        normalisation: Normalisation::Pmi,
+    };
+    let pmi = Mrf2::train(&[hand_map()], &pmi_params).unwrap();
+    let q: Vec<f64> = expected.iter().map(|n| (n + 1.0) / 17.0).collect();
+    let marg: Vec<f64> = (0..3).map(|a| (0..3).map(|b| q[a * 3 + b]).sum()).collect();
+    for a in 0..3 {
+        for b in 0..3 {
+            let want = q[a * 3 + b] / (marg[a] * marg[b]);
+            assert!((pmi.potential()[a * 3 + b] - want).abs() < 1e-15);
+        }
+    }
+}
+
+#[test]
+fn triple_counts_match_hand_count() {
+    let t = connected_triples(&hand_map());
+    assert_eq!(
+        t,
+        vec![[0, 1, 2], [0, 1, 3], [2, 1, 3], [1, 2, 3], [1, 3, 2]]
+    );
+    let joint0 = CooccurrenceParams {
+        pseudo_count: 0.0,
+        normalisation: Normalisation::Joint,
+    };
+    let m = Mrf3::train(&[hand_map()], &joint0).unwrap();
+    let idx = |a: usize, p: usize, b: usize| (a * 3 + p) * 3 + b;
+    let mut expected = vec![0.0; 27];
+    // Pivot 1 (B): (A,B,B), (A,B,C), (B,B,C); pivot 2 (B): (B,B,C); pivot 3 (C): (B,C,B).
+    for (a, p, b) in [(0, 1, 1), (0, 1, 2), (1, 1, 2), (1, 1, 2), (1, 2, 1)] {
+        expected[idx(a, p, b)] += 1.0;
+        expected[idx(b, p, a)] += 1.0;
+    }
+    assert_eq!(m.counts(), expected.as_slice());
+    assert_eq!(m.counts().iter().sum::<f64>(), 10.0);
+    // Symmetric in the two ends.
+    for a in 0..3 {
+        for p in 0..3 {
+            for b in 0..3 {
+                assert_eq!(m.potential()[idx(a, p, b)], m.potential()[idx(b, p, a)]);
+            }
+        }
+    }
+}
+
+#[test]
+fn factor_graphs_have_the_documented_factors() {
+    let m2 = Mrf2::train(&[hand_map()], &CooccurrenceParams::default()).unwrap();
+    let m3 = Mrf3::train(&[hand_map()], &CooccurrenceParams::default()).unwrap();
+    let ev: Vec<Vec<f64>> = (0..4)
+        .map(|i| vec![0.2, 0.3 + 0.1 * i as f64, 0.5])
+        .collect();
+    let fg2 = m2.factor_graph(&hand_map(), Some(&ev)).unwrap();
+    let vars2: Vec<&[usize]> = fg2.factors().iter().map(|f| f.vars()).collect();
+    assert_eq!(
+        vars2,
+        vec![
+            &[0, 1][..],
+            &[1, 2],
+            &[1, 3],
+            &[2, 3],
+            &[0],
+            &[1],
+            &[2],
+            &[3]
+        ]
+    );
+    let fg3 = m3.factor_graph(&hand_map(), Some(&ev)).unwrap();
+    assert_eq!(fg3.factors().len(), 5 + 4);
+    assert_eq!(fg3.factors()[8].table(), ev[3].as_slice());
+    // Bad evidence is refused with the place id in the message.
+    let mut bad = ev.clone();
+    bad[2] = vec![0.0; 3];
+    let err = m2
+        .infer(&hand_map(), &bad, &BpOptions::default())
+        .unwrap_err();
+    assert!(err.to_string().contains("place 102"), "{err}");
+}
+
+#[test]
+fn inference_and_likelihood_are_exact_on_a_tree_map() {
+    // A star-shaped tree: MRF-2's factor graph is a tree, so BP is exact.
+    let train = [
+        hand_map(),
+        map(&[0, 0, 1, 2, 2], &[(0, 1), (1, 2), (2, 3), (3, 4)]),
+    ];
+    let m2 = Mrf2::train(&train, &CooccurrenceParams::default()).unwrap();
+    let test = map(&[1, 0, 1, 2, 1], &[(0, 1), (0, 2), (0, 3), (3, 4)]);
+    let ev: Vec<Vec<f64>> = (0..5)
+        .map(|i| vec![0.1 + 0.05 * i as f64, 0.6, 0.3 - 0.05 * i as f64])
+        .collect();
+    let bp = m2.infer(&test, &ev, &BpOptions::default()).unwrap();
+    let exact = exact_inference(&m2.factor_graph(&test, Some(&ev)).unwrap(), 1 << 12).unwrap();
+    for (a, b) in bp.marginals.iter().zip(&exact.marginals) {
+        for (p, q) in a.iter().zip(b) {
+            assert!((p - q).abs() < 1e-10);
+        }
+    }
+    let labels = [1, 0, 1, 2, 1];
+    let ll = m2
+        .log_likelihood_labelled(&test, &labels, &BpOptions::default())
+        .unwrap();
+    let fg = m2.factor_graph(&test, None).unwrap();
+    let x: Vec<usize> = labels.iter().map(|&l| l as usize).collect();
+    let want = fg.log_score(&x).unwrap() - exact_inference(&fg, 1 << 12).unwrap().log_z;
+    assert!(ll.bp.converged);
+    assert!(
+        (ll.log_likelihood - want).abs() < 1e-10,
+        "{} vs {want}",
+        ll.log_likelihood
+    );
+    assert!(ll.log_likelihood < 0.0);
+    // MRF-3 on the loopy hand map: a proper (approximate) distribution.
+    let m3 = Mrf3::train(&train, &CooccurrenceParams::default()).unwrap();
+    let r = m3
+        .infer(&hand_map(), &ev[..4], &BpOptions::default())
+        .unwrap();
+    assert!(r.converged);
+    for row in &r.marginals {
+        assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    }
+}
