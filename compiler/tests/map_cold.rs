@@ -129,3 +129,13 @@ fn cold_class_frequencies_and_relabel() {
     }
     assert!(checked > 0);
 }
+
+#[test]
+fn cold_reference_stats_match_data() {
+    use graphspn_compiler::map::stats::MapStats;
+    let Some(dir) = data_dir() else {
+        return;
+    };
+    let all = cold::load_all(&dir).expect("load all");
+    assert_eq!(MapStats::of_maps(&all), MapStats::cold_reference());
+}
