@@ -33,9 +33,27 @@ fn cold_maps_match_reference_table() {
     };
     // (building, sequences, nodes min/median/max, edges min/median/max, placeholders)
     let table: [(&str, usize, [f64; 3], [f64; 3], usize); 3] = [
-        ("Freiburg", 26, [81.0, 87.5, 154.0], [145.0, 162.5, 308.0], 817),
-        ("Saarbrucken", 32, [46.0, 74.5, 230.0], [85.0, 140.0, 469.0], 878),
-        ("Stockholm", 32, [115.0, 151.5, 191.0], [180.0, 255.5, 360.0], 1041),
+        (
+            "Freiburg",
+            26,
+            [81.0, 87.5, 154.0],
+            [145.0, 162.5, 308.0],
+            817,
+        ),
+        (
+            "Saarbrucken",
+            32,
+            [46.0, 74.5, 230.0],
+            [85.0, 140.0, 469.0],
+            878,
+        ),
+        (
+            "Stockholm",
+            32,
+            [115.0, 151.5, 191.0],
+            [180.0, 255.5, 360.0],
+            1041,
+        ),
     ];
     let mut total = 0;
     for (building, count, nodes, edges, placeholders) in table {
@@ -69,7 +87,10 @@ fn cold_maps_match_reference_table() {
                 let d = m.degree(i);
                 assert!((1..=8).contains(&d), "{}: degree {d}", m.name);
                 if i > 0 {
-                    assert!(m.place(i - 1).id < m.place(i).id, "place order sorted by id");
+                    assert!(
+                        m.place(i - 1).id < m.place(i).id,
+                        "place order sorted by id"
+                    );
                 }
             }
         }

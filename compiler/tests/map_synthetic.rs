@@ -13,7 +13,10 @@ fn exact_size_connected_bounded_degree() {
         for i in 0..n {
             assert_eq!(m.place(i).id as usize, i, "ids are the exploration order");
             let d = m.degree(i);
-            assert!((1..=8).contains(&d), "n={n} seed={seed}: place {i} degree {d}");
+            assert!(
+                (1..=8).contains(&d),
+                "n={n} seed={seed}: place {i} degree {d}"
+            );
             assert!(m.place(i).class.is_some());
         }
         // Every prefix of the place order is connected (a robot's growing map).
@@ -30,7 +33,10 @@ fn neighbours_are_cold_like_distances_apart() {
         let (p, q) = (m.place(a), m.place(b));
         let d = ((p.x - q.x).powi(2) + (p.y - q.y).powi(2)).sqrt();
         // Grid 0.8 m (orthogonal) or 1.13 m (diagonal), poses jittered by < 0.08 m per axis.
-        assert!((0.8 - 0.23..=1.132 + 0.23).contains(&d), "edge {a}-{b}: {d} m");
+        assert!(
+            (0.8 - 0.23..=1.132 + 0.23).contains(&d),
+            "edge {a}-{b}: {d} m"
+        );
         if d < 0.97 {
             orth += 1;
         } else {
@@ -38,7 +44,10 @@ fn neighbours_are_cold_like_distances_apart() {
         }
     }
     // COLD: 10,788 orthogonal vs 8,789 diagonal neighbour pairs; both kinds must be common.
-    assert!(orth > diag / 2 && diag > orth / 3, "orth {orth} diag {diag}");
+    assert!(
+        orth > diag / 2 && diag > orth / 3,
+        "orth {orth} diag {diag}"
+    );
 }
 
 #[test]
@@ -53,12 +62,19 @@ fn deterministic_in_seed() {
 #[test]
 fn rejects_bad_params() {
     for n in [0, 9, 100_001] {
-        let e = generate(&SyntheticParams::new(n, 0)).unwrap_err().to_string();
+        let e = generate(&SyntheticParams::new(n, 0))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(&n.to_string()), "{e}");
     }
     let mut p = SyntheticParams::new(100, 0);
     p.diagonal_keep = 1.5;
-    assert!(generate(&p).unwrap_err().to_string().contains("diagonal_keep"));
+    assert!(
+        generate(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("diagonal_keep")
+    );
 }
 
 /// Synthetic maps should differ from pooled COLD no more than COLD's buildings
@@ -80,10 +96,19 @@ fn statistics_close_to_cold() {
         assert!(s.max_degree() <= 8);
         assert!(s.class_counts.iter().all(|&c| c > 0), "every class present");
         let cr = s.class_shares()[1];
-        assert!((0.25..=0.45).contains(&cr), "CR share {cr} (COLD 0.22-0.45 per building)");
+        assert!(
+            (0.25..=0.45).contains(&cr),
+            "CR share {cr} (COLD 0.22-0.45 per building)"
+        );
         let ph = s.placeholder_share();
-        assert!((0.15..=0.35).contains(&ph), "placeholder share {ph} (COLD 0.21-0.29)");
+        assert!(
+            (0.15..=0.35).contains(&ph),
+            "placeholder share {ph} (COLD 0.21-0.29)"
+        );
         let epp = s.edges_per_place();
-        assert!((1.65..=2.05).contains(&epp), "edges/place {epp} (COLD 1.74-1.93)");
+        assert!(
+            (1.65..=2.05).contains(&epp),
+            "edges/place {epp} (COLD 1.74-1.93)"
+        );
     }
 }

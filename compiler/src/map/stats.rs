@@ -138,15 +138,36 @@ pub fn comparison_table(columns: &[(&str, &MapStats)]) -> String {
         }
         out.push('\n');
     };
-    row(&mut out, "", columns.iter().map(|c| c.0.to_string()).collect());
+    row(
+        &mut out,
+        "",
+        columns.iter().map(|c| c.0.to_string()).collect(),
+    );
     let each = |f: &dyn Fn(&MapStats) -> String| columns.iter().map(|c| f(c.1)).collect();
     row(&mut out, "maps", each(&|s| s.maps.to_string()));
     row(&mut out, "places", each(&|s| s.places.to_string()));
     row(&mut out, "edges", each(&|s| s.edges.to_string()));
-    row(&mut out, "edges/place", each(&|s| format!("{:.3}", s.edges_per_place())));
-    row(&mut out, "placeholder share", each(&|s| pct(s.placeholder_share())));
-    row(&mut out, "max degree", each(&|s| s.max_degree().to_string()));
-    let max_d = columns.iter().map(|c| c.1.max_degree()).max().unwrap_or(0).max(8);
+    row(
+        &mut out,
+        "edges/place",
+        each(&|s| format!("{:.3}", s.edges_per_place())),
+    );
+    row(
+        &mut out,
+        "placeholder share",
+        each(&|s| pct(s.placeholder_share())),
+    );
+    row(
+        &mut out,
+        "max degree",
+        each(&|s| s.max_degree().to_string()),
+    );
+    let max_d = columns
+        .iter()
+        .map(|c| c.1.max_degree())
+        .max()
+        .unwrap_or(0)
+        .max(8);
     for d in 0..=max_d {
         row(
             &mut out,

@@ -263,7 +263,11 @@ fn build_floor(p: &SyntheticParams, corridors: i32, length: i32, rng: &mut ChaCh
                 let door_x = x + rng.random_range(0..w);
                 let mut doors = vec![f.add(door_x, wall, DW)];
                 if w >= 3 && rng.random_bool(0.1) {
-                    let x2 = if door_x + 1 < x + w { door_x + 1 } else { door_x - 1 };
+                    let x2 = if door_x + 1 < x + w {
+                        door_x + 1
+                    } else {
+                        door_x - 1
+                    };
                     let d2 = f.add(x2, wall, DW);
                     f.link(doors[0], d2);
                     doors.push(d2);
