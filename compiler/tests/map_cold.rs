@@ -25,6 +25,9 @@ fn median(v: &mut [usize]) -> f64 {
     }
 }
 
+/// (building, sequences, nodes min/median/max, edges min/median/max, placeholders)
+type Row = (&'static str, usize, [f64; 3], [f64; 3], usize);
+
 #[test]
 fn cold_maps_match_reference_table() {
     let Some(dir) = data_dir() else {
@@ -32,7 +35,7 @@ fn cold_maps_match_reference_table() {
         return;
     };
     // (building, sequences, nodes min/median/max, edges min/median/max, placeholders)
-    let table: [(&str, usize, [f64; 3], [f64; 3], usize); 3] = [
+    let table: [Row; 3] = [
         (
             "Freiburg",
             26,

@@ -94,7 +94,10 @@ impl SyntheticParams {
 
 /// Room classes with relative frequency of rooms and size ranges (cells along
 /// the corridor, cells deep), chosen so node shares and room sizes resemble COLD.
-const ROOMS: [(ClassId, f64, (i32, i32), (i32, i32)); 8] = [
+/// A room kind: class, relative frequency, width range, depth range (cells).
+type RoomKind = (ClassId, f64, (i32, i32), (i32, i32));
+
+const ROOMS: [RoomKind; 8] = [
     (2, 1.15, (2, 3), (3, 4)), // 1PO
     (3, 1.00, (3, 3), (3, 4)), // 2PO
     (4, 0.17, (4, 5), (4, 5)), // LO
