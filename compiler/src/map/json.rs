@@ -10,9 +10,11 @@
 //! }
 //! ```
 //!
-//! Places are written in place order (sorted by id), classes by name (`null`
-//! when unannotated), edges as sorted id pairs `[a, b]` with `a < b`. Output
-//! is deterministic and floats round-trip exactly.
+//! Places are written in place order (sorted by id), one per line, classes by
+//! name (`null` when unannotated), edges as sorted id pairs `[a, b]` with
+//! `a < b`, one per line. Output is deterministic and floats round-trip
+//! exactly (shortest representation; read back with serde_json's
+//! `float_roundtrip`).
 
 use std::path::Path;
 
@@ -41,6 +43,97 @@ struct PlaceJson {
     placeholder: bool,
     x: f64,
     y: f64,
+}
+
+/// Pretty printing (two-space indent), except that containers nested three
+/// deep (one place object, one edge pair) are written on one line:
+/// `{"id": 3, "class": "CR", ...}`, `[3, 7]`.
+#[derive(Default)]
+struct OnePerLine {
+    pretty: serde_json::ser::PrettyFormatter<'static>,
+    depth: usize,
+}
+
+const COMPACT_DEPTH: usize = 3;
+
+impl OnePerLine {
+    fn compact(&self) -> bool {
+        self.depth >= COMPACT_DEPTH
+    }
+}
+
+type Io = std::io::Result<()>;
+
+impl serde_json::ser::Formatter for OnePerLine {
+    fn begin_array<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> Io {
+        self.depth += 1;
+        if self.compact() {
+            w.write_all(b"[")
+        } else {
+            self.pretty.begin_array(w)
+        }
+    }
+    fn end_array<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> Io {
+        let compact = self.compact();
+        self.depth -= 1;
+        if compact {
+            w.write_all(b"]")
+        } else {
+            self.pretty.end_array(w)
+        }
+    }
+    fn begin_array_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W, first: bool) -> Io {
+        if self.compact() {
+            if first { Ok(()) } else { w.write_all(b", ") }
+        } else {
+            self.pretty.begin_array_value(w, first)
+        }
+    }
+    fn end_array_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> Io {
+        if self.compact() {
+            Ok(())
+        } else {
+            self.pretty.end_array_value(w)
+        }
+    }
+    fn begin_object<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> Io {
+        self.depth += 1;
+        if self.compact() {
+            w.write_all(b"{")
+        } else {
+            self.pretty.begin_object(w)
+        }
+    }
+    fn end_object<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> Io {
+        let compact = self.compact();
+        self.depth -= 1;
+        if compact {
+            w.write_all(b"}")
+        } else {
+            self.pretty.end_object(w)
+        }
+    }
+    fn begin_object_key<W: ?Sized + std::io::Write>(&mut self, w: &mut W, first: bool) -> Io {
+        if self.compact() {
+            if first { Ok(()) } else { w.write_all(b", ") }
+        } else {
+            self.pretty.begin_object_key(w, first)
+        }
+    }
+    fn begin_object_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> Io {
+        if self.compact() {
+            w.write_all(b": ")
+        } else {
+            self.pretty.begin_object_value(w)
+        }
+    }
+    fn end_object_value<W: ?Sized + std::io::Write>(&mut self, w: &mut W) -> Io {
+        if self.compact() {
+            Ok(())
+        } else {
+            self.pretty.end_object_value(w)
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -85,7 +178,13 @@ impl TopoMap {
             places,
             edges,
         };
-        let mut s = serde_json::to_string_pretty(&file).unwrap_or_default();
+        let mut buf = Vec::new();
+        let mut ser = serde_json::Serializer::with_formatter(&mut buf, OnePerLine::default());
+        // Serialising plain strings, numbers and bools into memory cannot fail.
+        if file.serialize(&mut ser).is_err() {
+            return String::new();
+        }
+        let mut s = String::from_utf8(buf).unwrap_or_default();
         s.push('\n');
         s
     }

@@ -375,6 +375,11 @@ pub fn generate(params: &SyntheticParams) -> Result<TopoMap, MapError> {
     }
 }
 
+/// Round metres to millimetres (short, exact JSON).
+fn mm(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
+
 /// Breadth-first exploration from the corridor corner; the first `n` places in
 /// that order, numbered 0..n. `None` if fewer than `n` are reachable.
 fn explore(f: &Floor, n: usize, seed: u64) -> Option<Result<TopoMap, MapError>> {
@@ -404,7 +409,8 @@ fn explore(f: &Floor, n: usize, seed: u64) -> Option<Result<TopoMap, MapError>> 
         number[v] = k;
     }
     let in_map = |v: usize| number[v] != usize::MAX && number[v] < n && order[number[v]] == v;
-    // Small deterministic jitter so the drawing looks hand-made, not a lattice.
+    // Small deterministic jitter (< 8 cm, rounded to mm) so the drawing looks
+    // hand-made, not a lattice.
     let mut jrng = ChaCha8Rng::seed_from_u64(seed ^ 0x9e37_79b9_7f4a_7c15);
     let places: Vec<Place> = order
         .iter()
@@ -415,8 +421,8 @@ fn explore(f: &Floor, n: usize, seed: u64) -> Option<Result<TopoMap, MapError>> 
                 id: k as PlaceId,
                 class: Some(c.class),
                 placeholder: c.placeholder,
-                x: c.gx as f64 * CELL + jrng.random_range(-0.08..0.08),
-                y: c.gy as f64 * CELL + jrng.random_range(-0.08..0.08),
+                x: mm(c.gx as f64 * CELL + jrng.random_range(-0.08..0.08)),
+                y: mm(c.gy as f64 * CELL + jrng.random_range(-0.08..0.08)),
             }
         })
         .collect();
