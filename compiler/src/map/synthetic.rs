@@ -58,11 +58,11 @@ impl SyntheticParams {
         SyntheticParams {
             places,
             seed,
-            diagonal_keep: 0.65,
-            orthogonal_keep: 0.85,
+            diagonal_keep: 0.6,
+            orthogonal_keep: 0.8,
             placeholder_prob: 0.95,
-            corridor_placeholder_prob: 0.65,
-            blank_wall: 0.22,
+            corridor_placeholder_prob: 0.9,
+            blank_wall: 0.25,
         }
     }
 
