@@ -7,6 +7,16 @@
 use petgraph::graph::{NodeIndex, UnGraph};
 use serde::{Deserialize, Serialize};
 
+pub mod cold;
+mod error;
+mod graph;
+mod json;
+pub mod stats;
+pub mod synthetic;
+
+pub use error::MapError;
+pub use json::MAP_FORMAT;
+
 /// Index of a class in a [`ClassSet`].
 pub type ClassId = u16;
 

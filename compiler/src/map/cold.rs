@@ -1,0 +1,359 @@
+//! Loader for the COLD topological maps (`nodes.dat` + `rooms.dat`), with the
+//! filtering the paper's authors applied (REFERENCE-FACTS.md section 1).
+//!
+//! `nodes.dat` has one place per line in 34 space-separated columns: id,
+//! placeholder flag, pose x y, two unused, anchor pose x y, raw label,
+//! timestamp, then eight `(neighbor_id, affordance, view_number)` triples
+//! (`neighbor_id = -1` marks an empty slot). `rooms.dat` has `node_id room_id`
+//! lines with room ids `floor-LABEL-k`.
+//!
+//! How the two files relate: in all 90 sequences the LABEL part of a node's
+//! room id equals the raw label in column 8 of `nodes.dat`, so `rooms.dat`
+//! adds only the grouping of places into rooms. The loader checks that
+//! agreement ([`MapError::RoomLabelMismatch`]). The authors' one relabelling,
+//! room `7-2PO-1` → `7-1PO-3` (Stockholm floor 7, 85 nodes in 8 sequences),
+//! therefore changes the class of that room's nodes from 2PO to 1PO.
+//!
+//! Filtering, in order: raw labels are mapped to the ten classes
+//! ([`raw_label_class`]); nodes labelled `UN` are dropped with their edges;
+//! edges are the union of both listing directions, de-duplicated; nodes left
+//! without an edge are dropped; placeholders are kept; the largest connected
+//! component is kept (with the real data it is always the whole graph).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use super::{ClassId, ClassSet, MapError, Place, PlaceId, TopoMap};
+
+/// The three COLD buildings, in the order [`load_all`] returns them.
+pub const BUILDINGS: [&str; 3] = ["Freiburg", "Saarbrucken", "Stockholm"];
+
+/// Number of columns of a `nodes.dat` line.
+pub const NODE_COLUMNS: usize = 34;
+
+/// Room relabelled by the authors: `(from, to, new raw label)`.
+pub const ROOM_RELABEL: (&str, &str, &str) = ("7-2PO-1", "7-1PO-3", "1PO");
+
+/// What a raw COLD label means.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RawLabel {
+    /// One of the paper's ten classes (index into [`ClassSet::paper`]).
+    Class(ClassId),
+    /// `UN`: unknown; such nodes are dropped.
+    Unknown,
+}
+
+/// The class of a raw COLD label (REFERENCE-FACTS.md class table), or `None`
+/// for a label the table does not know.
+pub fn raw_label_class(raw: &str) -> Option<RawLabel> {
+    let c: ClassId = match raw {
+        "DW" => 0,
+        "CR" | "AT" | "ST" | "EV" => 1,
+        "1PO" => 2,
+        "2PO" | "PRO" => 3,
+        "LO" | "MPO" => 4,
+        "LAB" | "RL" | "LR" | "TR" => 5,
+        "BA" => 6,
+        "KT" => 7,
+        "MR" | "LMR" | "CF" => 8,
+        "UT" | "WS" | "PT" | "PA" => 9,
+        "UN" => return Some(RawLabel::Unknown),
+        _ => return None,
+    };
+    Some(RawLabel::Class(c))
+}
+
+struct RawNode {
+    line: usize,
+    placeholder: bool,
+    x: f64,
+    y: f64,
+    label: RawLabel,
+    raw_label: String,
+    neighbors: Vec<i64>,
+}
+
+fn read(path: &Path) -> Result<String, MapError> {
+    std::fs::read_to_string(path).map_err(|e| MapError::io(path, e))
+}
+
+fn parse_int(path: &Path, line: usize, column: usize, text: &str) -> Result<i64, MapError> {
+    text.parse::<i64>().map_err(|_| MapError::BadNumber {
+        path: path.to_path_buf(),
+        line,
+        column,
+        text: text.to_string(),
+    })
+}
+
+fn parse_float(path: &Path, line: usize, column: usize, text: &str) -> Result<f64, MapError> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(MapError::BadNumber {
+            path: path.to_path_buf(),
+            line,
+            column,
+            text: text.to_string(),
+        }),
+    }
+}
+
+fn parse_nodes(path: &Path) -> Result<BTreeMap<i64, RawNode>, MapError> {
+    let text = read(path)?;
+    let mut nodes: BTreeMap<i64, RawNode> = BTreeMap::new();
+    for (k, raw_line) in text.lines().enumerate() {
+        let line = k + 1;
+        let cols: Vec<&str> = raw_line.split_whitespace().collect();
+        if cols.is_empty() {
+            continue;
+        }
+        if cols.len() != NODE_COLUMNS {
+            return Err(MapError::ColumnCount {
+                path: path.to_path_buf(),
+                line,
+                expected: NODE_COLUMNS,
+                found: cols.len(),
+            });
+        }
+        let id = parse_int(path, line, 0, cols[0])?;
+        if PlaceId::try_from(id).is_err() {
+            return Err(MapError::BadNodeId {
+                path: path.to_path_buf(),
+                line,
+                id,
+            });
+        }
+        let placeholder = match parse_int(path, line, 1, cols[1])? {
+            0 => false,
+            1 => true,
+            _ => {
+                return Err(MapError::BadNumber {
+                    path: path.to_path_buf(),
+                    line,
+                    column: 1,
+                    text: cols[1].to_string(),
+                });
+            }
+        };
+        let x = parse_float(path, line, 2, cols[2])?;
+        let y = parse_float(path, line, 3, cols[3])?;
+        for c in [4, 5, 6, 7, 9] {
+            parse_float(path, line, c, cols[c])?;
+        }
+        let label = raw_label_class(cols[8]).ok_or_else(|| MapError::UnknownLabel {
+            path: path.to_path_buf(),
+            line,
+            column: 8,
+            label: cols[8].to_string(),
+        })?;
+        let mut neighbors = Vec::new();
+        for t in 0..8 {
+            let c = 10 + 3 * t;
+            let nb = parse_int(path, line, c, cols[c])?;
+            parse_float(path, line, c + 1, cols[c + 1])?;
+            parse_int(path, line, c + 2, cols[c + 2])?;
+            if nb != -1 {
+                neighbors.push(nb);
+            }
+        }
+        let node = RawNode {
+            line,
+            placeholder,
+            x,
+            y,
+            label,
+            raw_label: cols[8].to_string(),
+            neighbors,
+        };
+        if let Some(first) = nodes.get(&id) {
+            return Err(MapError::DuplicateNodeLine {
+                path: path.to_path_buf(),
+                line,
+                first_line: first.line,
+                id,
+            });
+        }
+        nodes.insert(id, node);
+    }
+    Ok(nodes)
+}
+
+/// Parse `rooms.dat`: node id → room id.
+fn parse_rooms(path: &Path) -> Result<BTreeMap<i64, (usize, String)>, MapError> {
+    let text = read(path)?;
+    let mut rooms = BTreeMap::new();
+    for (k, raw_line) in text.lines().enumerate() {
+        let line = k + 1;
+        let cols: Vec<&str> = raw_line.split_whitespace().collect();
+        if cols.is_empty() {
+            continue;
+        }
+        if cols.len() != 2 {
+            return Err(MapError::ColumnCount {
+                path: path.to_path_buf(),
+                line,
+                expected: 2,
+                found: cols.len(),
+            });
+        }
+        let id = parse_int(path, line, 0, cols[0])?;
+        if room_label(cols[1]).is_none() {
+            return Err(MapError::BadRoomId {
+                path: path.to_path_buf(),
+                line,
+                room: cols[1].to_string(),
+            });
+        }
+        if let Some((first_line, _)) = rooms.get(&id) {
+            return Err(MapError::DuplicateNodeLine {
+                path: path.to_path_buf(),
+                line,
+                first_line: *first_line,
+                id,
+            });
+        }
+        rooms.insert(id, (line, cols[1].to_string()));
+    }
+    Ok(rooms)
+}
+
+/// The LABEL part of a room id `floor-LABEL-k`.
+fn room_label(room: &str) -> Option<&str> {
+    let (_, rest) = room.split_once('-')?;
+    let (label, _) = rest.rsplit_once('-')?;
+    if label.is_empty() { None } else { Some(label) }
+}
+
+/// Load one COLD sequence folder (holding `nodes.dat` and `rooms.dat`) with the
+/// authors' filtering. The map is named `<parent folder>/<folder>`, e.g.
+/// `Freiburg/seq1_cloudy1`.
+pub fn load_sequence(dir: impl AsRef<Path>) -> Result<TopoMap, MapError> {
+    let dir = dir.as_ref();
+    let nodes_path = dir.join("nodes.dat");
+    let rooms_path = dir.join("rooms.dat");
+    let nodes = parse_nodes(&nodes_path)?;
+    let rooms = parse_rooms(&rooms_path)?;
+
+    let mut classes_of: BTreeMap<i64, ClassId> = BTreeMap::new();
+    for (&id, node) in &nodes {
+        let (_, room) = rooms.get(&id).ok_or_else(|| MapError::MissingRoom {
+            path: rooms_path.clone(),
+            node: id,
+        })?;
+        if room_label(room) != Some(node.raw_label.as_str()) {
+            return Err(MapError::RoomLabelMismatch {
+                path: nodes_path.clone(),
+                line: node.line,
+                node: id,
+                label: node.raw_label.clone(),
+                room: room.clone(),
+            });
+        }
+        let label = if room == ROOM_RELABEL.0 {
+            raw_label_class(ROOM_RELABEL.2).unwrap_or(node.label)
+        } else {
+            node.label
+        };
+        if let RawLabel::Class(c) = label {
+            classes_of.insert(id, c);
+        }
+        for &nb in &node.neighbors {
+            if !nodes.contains_key(&nb) {
+                return Err(MapError::MissingNeighbor {
+                    path: nodes_path.clone(),
+                    line: node.line,
+                    node: id,
+                    neighbor: nb,
+                });
+            }
+        }
+    }
+
+    // Edges among kept (non-UN) nodes, both listing directions, de-duplicated.
+    let mut edges: Vec<(PlaceId, PlaceId)> = Vec::new();
+    let mut has_edge: BTreeMap<i64, bool> = BTreeMap::new();
+    for (&id, node) in &nodes {
+        if !classes_of.contains_key(&id) {
+            continue;
+        }
+        for &nb in &node.neighbors {
+            if nb != id && classes_of.contains_key(&nb) {
+                edges.push((id as PlaceId, nb as PlaceId));
+                has_edge.insert(id, true);
+                has_edge.insert(nb, true);
+            }
+        }
+    }
+    let places: Vec<Place> = classes_of
+        .iter()
+        .filter(|(id, _)| has_edge.contains_key(id))
+        .map(|(&id, &c)| {
+            let n = &nodes[&id];
+            Place {
+                id: id as PlaceId,
+                class: Some(c),
+                placeholder: n.placeholder,
+                x: n.x,
+                y: n.y,
+            }
+        })
+        .collect();
+    if places.is_empty() {
+        return Err(MapError::EmptyAfterFiltering {
+            path: dir.to_path_buf(),
+        });
+    }
+    let map = TopoMap::new(sequence_name(dir), ClassSet::paper(), places, edges)
+        .map_err(|e| e.in_file(&nodes_path))?;
+    Ok(map.largest_component())
+}
+
+fn sequence_name(dir: &Path) -> String {
+    let leaf = dir
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    match dir.parent().and_then(|p| p.file_name()) {
+        Some(parent) => format!("{}/{}", parent.to_string_lossy(), leaf),
+        None => leaf,
+    }
+}
+
+/// Sequence folders (those holding a `nodes.dat`) of a building, sorted by name.
+pub fn sequence_dirs(building_dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, MapError> {
+    let building_dir = building_dir.as_ref();
+    let entries = std::fs::read_dir(building_dir).map_err(|e| MapError::io(building_dir, e))?;
+    let mut dirs = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| MapError::io(building_dir, e))?;
+        let p = entry.path();
+        if p.join("nodes.dat").is_file() {
+            dirs.push(p);
+        }
+    }
+    dirs.sort();
+    if dirs.is_empty() {
+        return Err(MapError::NoSequences {
+            path: building_dir.to_path_buf(),
+        });
+    }
+    Ok(dirs)
+}
+
+/// All sequences of one building (`data_dir/<building>/*`), sorted by sequence name.
+pub fn load_building(data_dir: impl AsRef<Path>, building: &str) -> Result<Vec<TopoMap>, MapError> {
+    sequence_dirs(data_dir.as_ref().join(building))?
+        .iter()
+        .map(load_sequence)
+        .collect()
+}
+
+/// All sequences of the three buildings, in [`BUILDINGS`] order, each building
+/// sorted by sequence name (90 maps for the full data set).
+pub fn load_all(data_dir: impl AsRef<Path>) -> Result<Vec<TopoMap>, MapError> {
+    let mut all = Vec::new();
+    for b in BUILDINGS {
+        all.extend(load_building(data_dir.as_ref(), b)?);
+    }
+    Ok(all)
+}
