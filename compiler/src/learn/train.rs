@@ -13,7 +13,9 @@
 //! all of them costs milliseconds, so the per-batch updates the authors used to
 //! bound memory buy nothing here. `batch_size` only sets the size of the work
 //! chunks processed in parallel; chunk results are added in chunk order, so the
-//! result is deterministic.
+//! result is deterministic. Hard-EM counts are integers (exact in `f64`), so the
+//! weights do not depend on `batch_size` at all; soft-EM expected counts may
+//! differ in the last bits between batch sizes (never between runs).
 //!
 //! **Objective.** With smoothing `s`, an epoch maximises
 //! `Σ_n log V_n(w) + s·Σ_e log w_e` over normalised weights, where `V_n` is the
@@ -222,8 +224,8 @@ impl Flat {
 /// Per-chunk E-step result.
 struct Stats {
     counts: Vec<f64>,
-    ll: f64,
-    mpe_ll: f64,
+    /// Per distinct sample: multiplicity × (log-likelihood, MPE log-value).
+    ll: Vec<(f64, f64)>,
     zero: Option<usize>,
 }
 
@@ -378,7 +380,7 @@ fn e_step(
     want_counts: bool,
     chunk: usize,
     num_edges: usize,
-) -> Stats {
+) -> Totals {
     let parts: Vec<Stats> = data
         .par_chunks(chunk.max(1))
         .enumerate()
@@ -390,8 +392,7 @@ fn e_step(
                 } else {
                     Vec::new()
                 },
-                ll: 0.0,
-                mpe_ll: 0.0,
+                ll: Vec::with_capacity(part.len()),
                 zero: None,
             };
             for (k, (x, m)) in part.iter().enumerate() {
@@ -401,12 +402,11 @@ fn e_step(
                     st.zero.get_or_insert(ci * chunk + k);
                     continue;
                 }
-                st.ll += m * ll;
                 if want_counts && em == EmKind::Soft {
                     soft_counts(f, lw, m, &mut s, &mut st.counts);
                 }
                 let mpe = up(f, lw, x, true, &mut s);
-                st.mpe_ll += m * mpe;
+                st.ll.push((m * ll, m * mpe));
                 if want_counts && em == EmKind::Hard {
                     hard_counts(f, m, &mut s, &mut st.counts);
                 }
@@ -414,23 +414,34 @@ fn e_step(
             st
         })
         .collect();
-    let mut total = Stats {
+    let mut total = Totals {
         counts: vec![0.0; if want_counts { num_edges } else { 0 }],
         ll: 0.0,
         mpe_ll: 0.0,
         zero: None,
     };
+    // Sample by sample in a fixed order, so the totals do not depend on chunking.
     for p in parts {
         for (t, c) in total.counts.iter_mut().zip(&p.counts) {
             *t += c;
         }
-        total.ll += p.ll;
-        total.mpe_ll += p.mpe_ll;
+        for (ll, mpe) in p.ll {
+            total.ll += ll;
+            total.mpe_ll += mpe;
+        }
         if total.zero.is_none() {
             total.zero = p.zero;
         }
     }
     total
+}
+
+/// E-step totals.
+struct Totals {
+    counts: Vec<f64>,
+    ll: f64,
+    mpe_ll: f64,
+    zero: Option<usize>,
 }
 
 fn log_weights(spn: &Spn) -> Vec<f64> {
