@@ -27,8 +27,8 @@ pub enum Symmetry {
     #[default]
     Augment,
     /// Augment, build a structure closed under the automorphisms and tie the
-    /// weights along their orbits: exactly symmetric, but larger (Star: 3,750 or
-    /// 8,000 weights instead of 1,250).
+    /// weights along their orbits: exactly symmetric, but larger (Star: 3,750
+    /// weights instead of 1,250 with 10 classes; Pair and Three unchanged).
     Tied,
 }
 

@@ -85,6 +85,10 @@ pub enum StructureError {
 /// then each sum is normalised (so weights are within 1% of uniform).
 pub const INIT_JITTER: f64 = 0.01;
 
+/// Random splits drawn per decomposition by [`symmetric_dense_structure`], of
+/// which the one with the fewest images under the group is kept.
+pub const SPLIT_CANDIDATES: usize = 16;
+
 type Scope = Vec<u32>;
 type Partition = Vec<Scope>;
 
@@ -152,6 +156,21 @@ impl Builder<'_> {
         s
     }
 
+    /// Number of distinct images of split `p` of region `rep` under the group
+    /// elements that fix `rep`.
+    fn orbit_size(&self, rep: &[u32], p: &Partition) -> usize {
+        let mut set = BTreeSet::new();
+        for g in self.group {
+            if self.apply(g, rep) != rep {
+                continue;
+            }
+            let mut q: Partition = p.iter().map(|s| self.apply(g, s)).collect();
+            q.sort();
+            set.insert(q);
+        }
+        set.len()
+    }
+
     /// Splits of `scope`: random ones, closed under the group when there is one.
     fn partitions(&mut self, scope: &[u32]) -> Vec<Partition> {
         if self.group.is_empty() {
@@ -176,7 +195,18 @@ impl Builder<'_> {
             let mut set = BTreeSet::new();
             let mut parts = Vec::new();
             for _ in 0..self.params.decompositions {
-                let p = self.random_partition(&rep);
+                // Of a few random splits keep the one with the fewest images under
+                // the group: the closed structure stays as small as possible
+                // (Star: {P},{x,y},{z,w} has 3 images, {P,x},{y,z},{w} has 12).
+                let mut p = self.random_partition(&rep);
+                let mut best = self.orbit_size(&rep, &p);
+                for _ in 1..SPLIT_CANDIDATES {
+                    let q = self.random_partition(&rep);
+                    let size = self.orbit_size(&rep, &q);
+                    if size < best {
+                        (p, best) = (q, size);
+                    }
+                }
                 if set.insert(p.clone()) {
                     parts.push(p);
                 }
@@ -318,9 +348,11 @@ pub fn dense_structure(
 /// (up to floating-point rounding of the evaluation order) as long as training
 /// keeps the weights tied ([`super::train::train_tied`]).
 ///
-/// The price is size: the Star's `{2,2,1}` split has 12 (or 3) images under the
-/// 24 leaf permutations, so the Star gets 8,000 (or 3,750) weights instead of
-/// 1,250; Pair and Three are full tables either way.
+/// Each split is the one with the fewest images under the group among
+/// [`SPLIT_CANDIDATES`] random draws, to keep the closure small. The price is
+/// still size: the Star's best `{2,2,1}` split, `{P},{x,y},{z,w}`, has 3 images
+/// under the 24 leaf permutations, so the Star gets 3,750 weights instead of
+/// 1,250 (with 10 classes); Pair and Three are full tables either way.
 pub fn symmetric_dense_structure(
     num_vars: usize,
     num_classes: u32,
