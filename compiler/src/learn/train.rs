@@ -243,6 +243,7 @@ fn log_add(a: f64, b: f64) -> f64 {
 /// Scratch buffers of one worker.
 struct Scratch {
     val: Vec<f64>,
+    mval: Vec<f64>,
     best: Vec<u32>,
     mark: Vec<f64>,
 }
@@ -251,62 +252,78 @@ impl Scratch {
     fn new(n: usize) -> Self {
         Scratch {
             val: vec![0.0; n],
+            mval: vec![0.0; n],
             best: vec![0; n],
             mark: vec![0.0; n],
         }
     }
 }
 
-/// Upward pass on a complete sample: log values, max-product if `max`.
-fn up(f: &Flat, lw: &[f64], x: &[ClassId], max: bool, s: &mut Scratch) -> f64 {
+/// Upward pass on a complete sample: log SPN values into `s.val`, log
+/// max-product values into `s.mval` and each sum's best child into `s.best`
+/// (first maximum). Children of value zero are skipped (for complete data most
+/// are). Returns (log-likelihood, log MPE-tree value).
+fn up(f: &Flat, lw: &[f64], x: &[ClassId], s: &mut Scratch) -> (f64, f64) {
     for i in 0..f.kind.len() {
-        s.val[i] = match f.kind[i] {
+        let (v, mv) = match f.kind[i] {
             0 => {
                 let (v, c) = f.leaf[i];
-                if u32::from(x[v as usize]) == c {
+                let v = if u32::from(x[v as usize]) == c {
                     0.0
                 } else {
                     f64::NEG_INFINITY
-                }
+                };
+                (v, v)
             }
             1 => {
                 let off = f.woff[i];
                 let kids = f.kids(i);
-                if max {
-                    let mut bv = f64::NEG_INFINITY;
-                    let mut bj = 0;
-                    for (j, &c) in kids.iter().enumerate() {
-                        let v = lw[off + j] + s.val[c as usize];
-                        if v > bv {
-                            bv = v;
-                            bj = j;
-                        }
+                let mut bv = f64::NEG_INFINITY;
+                let mut bj = 0;
+                let mut m = f64::NEG_INFINITY;
+                for (j, &c) in kids.iter().enumerate() {
+                    let vc = s.val[c as usize];
+                    if vc == f64::NEG_INFINITY {
+                        continue;
                     }
-                    s.best[i] = bj as u32;
-                    bv
+                    let w = lw[off + j];
+                    let mv = w + s.mval[c as usize];
+                    if mv > bv {
+                        bv = mv;
+                        bj = j;
+                    }
+                    m = m.max(w + vc);
+                }
+                s.best[i] = bj as u32;
+                if m == f64::NEG_INFINITY {
+                    (m, bv)
                 } else {
-                    let mut m = f64::NEG_INFINITY;
+                    let mut acc = 0.0;
                     for (j, &c) in kids.iter().enumerate() {
-                        m = m.max(lw[off + j] + s.val[c as usize]);
-                    }
-                    if m == f64::NEG_INFINITY {
-                        m
-                    } else {
-                        let mut acc = 0.0;
-                        for (j, &c) in kids.iter().enumerate() {
-                            acc += (lw[off + j] + s.val[c as usize] - m).exp();
+                        let vc = s.val[c as usize];
+                        if vc != f64::NEG_INFINITY {
+                            acc += (lw[off + j] + vc - m).exp();
                         }
-                        m + acc.ln()
                     }
+                    (m + acc.ln(), bv)
                 }
             }
-            _ => f.kids(i).iter().map(|&c| s.val[c as usize]).sum(),
+            _ => {
+                let (mut v, mut mv) = (0.0, 0.0);
+                for &c in f.kids(i) {
+                    v += s.val[c as usize];
+                    mv += s.mval[c as usize];
+                }
+                (v, mv)
+            }
         };
+        s.val[i] = v;
+        s.mval[i] = mv;
     }
-    s.val[f.root]
+    (s.val[f.root], s.mval[f.root])
 }
 
-/// Hard-EM counts: follow the MPE tree from the root (after a `max` up pass).
+/// Hard-EM counts: follow the MPE tree from the root (after [`up`]).
 fn hard_counts(f: &Flat, m: f64, s: &mut Scratch, counts: &mut [f64]) {
     s.mark.fill(0.0);
     s.mark[f.root] = 1.0;
@@ -330,7 +347,7 @@ fn hard_counts(f: &Flat, m: f64, s: &mut Scratch, counts: &mut [f64]) {
     }
 }
 
-/// Soft-EM expected counts (after a sum up pass): downward log-derivatives.
+/// Soft-EM expected counts (after [`up`]): downward log-derivatives.
 fn soft_counts(f: &Flat, lw: &[f64], m: f64, s: &mut Scratch, counts: &mut [f64]) {
     let root_val = s.val[f.root];
     s.mark.fill(f64::NEG_INFINITY);
@@ -397,7 +414,7 @@ fn e_step(
             };
             for (k, (x, m)) in part.iter().enumerate() {
                 let m = *m as f64;
-                let ll = up(f, lw, x, false, &mut s);
+                let (ll, mpe) = up(f, lw, x, &mut s);
                 if ll == f64::NEG_INFINITY {
                     st.zero.get_or_insert(ci * chunk + k);
                     continue;
@@ -405,7 +422,6 @@ fn e_step(
                 if want_counts && em == EmKind::Soft {
                     soft_counts(f, lw, m, &mut s, &mut st.counts);
                 }
-                let mpe = up(f, lw, x, true, &mut s);
                 st.ll.push((m * ll, m * mpe));
                 if want_counts && em == EmKind::Hard {
                     hard_counts(f, m, &mut s, &mut st.counts);
@@ -686,5 +702,5 @@ pub fn log_likelihood(spn: &Spn, sample: &[ClassId]) -> Result<f64, TrainError> 
     let f = Flat::new(spn)?;
     let lw = log_weights(spn);
     let mut s = Scratch::new(f.kind.len());
-    Ok(up(&f, &lw, sample, false, &mut s))
+    Ok(up(&f, &lw, sample, &mut s).0)
 }
