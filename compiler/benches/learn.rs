@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use graphspn_compiler::learn::structure::num_weights;
+use graphspn_compiler::learn::train::log_likelihoods;
 use graphspn_compiler::learn::{Progress, Symmetry, TrainingSettings, learn_template_spn};
 use graphspn_compiler::map::ClassId;
 use rand::Rng;
@@ -101,15 +102,37 @@ fn bench(c: &mut Criterion) {
             let secs = t.elapsed().as_secs_f64();
             total += secs;
             let rep = rep.expect("report");
+            // Asymmetry: mean and max |log p(x) − log p(g·x)| over the first 500
+            // samples and all automorphisms g.
+            let xs: Vec<Vec<ClassId>> = data.iter().take(500).cloned().collect();
+            let base = log_likelihoods(&spn, &xs).expect("ll");
+            let (mut sum, mut max, mut cnt) = (0.0f64, 0.0f64, 0usize);
+            for g in &group {
+                let ys: Vec<Vec<ClassId>> = xs
+                    .iter()
+                    .map(|x| g.iter().map(|&i| x[i]).collect())
+                    .collect();
+                for (a, b) in base.iter().zip(log_likelihoods(&spn, &ys).expect("ll")) {
+                    let d = (a - b).abs();
+                    sum += d;
+                    max = max.max(d);
+                    cnt += 1;
+                }
+            }
             eprintln!(
                 "{symmetry:?} {name}: {m} samples ×{} = {} ({} distinct), {} weights, {secs:.3} s, \
-                 log-lik/sample initial {:.4} → final {:.4}",
+                 log-lik/sample initial {:.4} → final {:.4}; asymmetry |Δ log p| mean {:.2e} max {:.2e}",
                 group.len(),
                 rep.num_samples,
                 rep.num_distinct,
                 num_weights(&spn),
                 rep.initial_log_likelihood,
-                rep.log_likelihood_per_epoch.last().copied().unwrap_or(f64::NAN),
+                rep.log_likelihood_per_epoch
+                    .last()
+                    .copied()
+                    .unwrap_or(f64::NAN),
+                sum / cnt as f64,
+                max,
             );
         }
     }

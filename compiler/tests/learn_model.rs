@@ -2,11 +2,11 @@
 
 mod learn_util;
 
+use graphspn_compiler::learn::model::MODEL_FORMAT;
 use graphspn_compiler::learn::{
     DenseParams, Model, ModelFileError, Progress, TrainingSettings, dense_structure,
     learn_template_spn, uniform_spn,
 };
-use graphspn_compiler::learn::model::MODEL_FORMAT;
 use graphspn_compiler::map::ClassSet;
 use graphspn_compiler::spn::Node;
 use graphspn_compiler::template::Template;
@@ -20,9 +20,16 @@ fn small_model() -> Model {
     };
     let table = mixture_table(3, 10, 2, 3);
     let samples = sample_table(&table, 3, 10, 2_000, 3);
-    let (three, _) =
-        learn_template_spn(3, 10, &three_group(), &samples, &settings, 1, Progress::Hidden)
-            .unwrap();
+    let (three, _) = learn_template_spn(
+        3,
+        10,
+        &three_group(),
+        &samples,
+        &settings,
+        1,
+        Progress::Hidden,
+    )
+    .unwrap();
     Model {
         format: MODEL_FORMAT,
         classes: ClassSet::paper(),
@@ -71,13 +78,18 @@ fn default_settings_are_the_authors() {
     assert_eq!(s.decompositions_per_map, 10);
     assert_eq!(s.structure, DenseParams::default());
     assert_eq!(
-        (s.structure.decompositions, s.structure.subsets, s.structure.sums),
+        (
+            s.structure.decompositions,
+            s.structure.subsets,
+            s.structure.sums
+        ),
         (1, 3, 5)
     );
     assert!(s.structure.balanced);
     assert_eq!(s.epochs, 10);
     assert_eq!((s.smoothing_start, s.smoothing_end), (30.0, 5.0));
     assert_eq!(s.batch_size, 2000);
+    assert_eq!(s.symmetry, graphspn_compiler::learn::Symmetry::Tied);
     // Missing fields default; unknown ones are rejected.
     let v: serde_json::Value = serde_json::json!({"epochs": 4});
     assert_eq!(TrainingSettings::from_value(&v).unwrap().epochs, 4);
@@ -87,11 +99,17 @@ fn default_settings_are_the_authors() {
 
 #[test]
 fn unknown_format_is_rejected_clearly() {
-    let text = small_model().to_json().unwrap().replace("\"format\": 1", "\"format\": 99");
+    let text = small_model()
+        .to_json()
+        .unwrap()
+        .replace("\"format\": 1", "\"format\": 99");
     let err = Model::from_json_named(&text, "m.json").unwrap_err();
     assert!(matches!(err, ModelFileError::UnsupportedFormat { .. }));
     let msg = err.to_string();
-    assert!(msg.contains("m.json") && msg.contains("99") && msg.contains("format 1"), "{msg}");
+    assert!(
+        msg.contains("m.json") && msg.contains("99") && msg.contains("format 1"),
+        "{msg}"
+    );
     let err = Model::from_json("{\"classes\": []}").unwrap_err();
     assert!(err.to_string().contains("missing"), "{err}");
 }

@@ -44,8 +44,12 @@ proptest! {
         let (n, group) = if three { (3, three_group()) } else { (2, pair_group()) };
         let table = mixture_table(n, 6, 2, data_seed);
         let samples = sample_table(&table, n, 6, 300, data_seed);
+        let settings = TrainingSettings {
+            symmetry: Symmetry::Augment,
+            ..TrainingSettings::default()
+        };
         let (spn, _) = learn_template_spn(
-            n, 6, &group, &samples, &TrainingSettings::default(), data_seed, Progress::Hidden,
+            n, 6, &group, &samples, &settings, data_seed, Progress::Hidden,
         ).unwrap();
         for perm in &group {
             let y: Vec<u16> = perm.iter().map(|&i| x[i]).collect();

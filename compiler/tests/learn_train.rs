@@ -78,11 +78,17 @@ fn hard_em_objective_is_monotone_with_fixed_smoothing() {
             let rep = train(&mut spn, &samples, &fixed(2.0, 12, em), Progress::Hidden).unwrap();
             let obj = &rep.objective_per_epoch;
             for w in obj.windows(2) {
-                assert!(w[1] >= w[0] - 1e-9, "{em:?} seed {seed}: objective fell {obj:?}");
+                assert!(
+                    w[1] >= w[0] - 1e-9,
+                    "{em:?} seed {seed}: objective fell {obj:?}"
+                );
             }
             assert!(obj[obj.len() - 1] > obj[0]);
             let ll = &rep.log_likelihood_per_epoch;
-            assert!(ll[ll.len() - 1] > rep.initial_log_likelihood, "{em:?} {ll:?}");
+            assert!(
+                ll[ll.len() - 1] > rep.initial_log_likelihood,
+                "{em:?} {ll:?}"
+            );
             if em == EmKind::Soft {
                 // Soft EM's objective is the true likelihood (plus the prior).
                 for w in ll.windows(2) {
@@ -101,7 +107,10 @@ fn decaying_schedule_raises_likelihood_and_beats_independence() {
     let settings = TrainingSettings::default();
     let rep = train(&mut spn, &samples, &settings, Progress::Hidden).unwrap();
     let ll = &rep.log_likelihood_per_epoch;
-    assert!(ll[ll.len() - 1] > rep.initial_log_likelihood + 0.1, "{ll:?}");
+    assert!(
+        ll[ll.len() - 1] > rep.initial_log_likelihood + 0.1,
+        "{ll:?}"
+    );
     assert_eq!(rep.smoothing_per_epoch[0], 30.0);
     assert_eq!(*rep.smoothing_per_epoch.last().unwrap(), 5.0);
     // The learned model is normalised and close to the truth.
@@ -119,7 +128,12 @@ fn decaying_schedule_raises_likelihood_and_beats_independence() {
     }
     let indep: Vec<f64> = assignments
         .iter()
-        .map(|x| x.iter().enumerate().map(|(i, &c)| marg[i][c as usize]).product())
+        .map(|x| {
+            x.iter()
+                .enumerate()
+                .map(|(i, &c)| marg[i][c as usize])
+                .product()
+        })
         .collect();
     let d_indep = kl(&table, &indep);
     assert!(d < d_indep, "KL learned {d} vs independent {d_indep}");
@@ -133,7 +147,13 @@ fn augmentation_makes_tables_exactly_symmetric() {
         let aug = augment_with_automorphisms(&samples, &group);
         assert_eq!(aug.len(), samples.len() * group.len());
         let mut spn = dense_structure(n, 10, &DenseParams::default(), 2).unwrap();
-        train(&mut spn, &aug, &TrainingSettings::default(), Progress::Hidden).unwrap();
+        train(
+            &mut spn,
+            &aug,
+            &TrainingSettings::default(),
+            Progress::Hidden,
+        )
+        .unwrap();
         for x in all_assignments(n, 10) {
             for g in &group {
                 let y: Vec<u16> = g.iter().map(|&i| x[i]).collect();
@@ -160,16 +180,34 @@ fn asymmetry(spn: &graphspn_compiler::spn::Spn, c: u16) -> f64 {
 fn star_symmetry_augmented_vs_tied() {
     let table = mixture_table(5, 4, 3, 5);
     let samples = sample_table(&table, 5, 4, 3_000, 4);
-    let settings = TrainingSettings::default();
-    let (aug, _) = learn_template_spn(5, 4, &star_group(), &samples, &settings, 1, Progress::Hidden)
-        .unwrap();
+    let settings = TrainingSettings {
+        symmetry: Symmetry::Augment,
+        ..TrainingSettings::default()
+    };
+    let (aug, _) = learn_template_spn(
+        5,
+        4,
+        &star_group(),
+        &samples,
+        &settings,
+        1,
+        Progress::Hidden,
+    )
+    .unwrap();
     let tied_settings = TrainingSettings {
         symmetry: Symmetry::Tied,
         ..settings.clone()
     };
-    let (tied, rep) =
-        learn_template_spn(5, 4, &star_group(), &samples, &tied_settings, 1, Progress::Hidden)
-            .unwrap();
+    let (tied, rep) = learn_template_spn(
+        5,
+        4,
+        &star_group(),
+        &samples,
+        &tied_settings,
+        1,
+        Progress::Hidden,
+    )
+    .unwrap();
     let a = asymmetry(&aug, 4);
     let t = asymmetry(&tied, 4);
     eprintln!("star asymmetry max |Δ log p|: augmented {a:.3e}, tied {t:.3e}");
@@ -184,12 +222,18 @@ fn star_symmetry_augmented_vs_tied() {
 fn tied_weights_stay_bit_identical() {
     let table = mixture_table(3, 5, 2, 8);
     let samples = sample_table(&table, 3, 5, 2_000, 8);
-    let mut spn = symmetric_dense_structure(3, 5, &DenseParams::default(), &three_group(), 3)
-        .unwrap();
+    let mut spn =
+        symmetric_dense_structure(3, 5, &DenseParams::default(), &three_group(), 3).unwrap();
     let orbits = edge_orbits(&spn, &three_group()).unwrap();
     // No augmentation: the data are asymmetric, tying alone must symmetrise.
-    train_tied(&mut spn, &samples, &TrainingSettings::default(), &orbits, Progress::Hidden)
-        .unwrap();
+    train_tied(
+        &mut spn,
+        &samples,
+        &TrainingSettings::default(),
+        &orbits,
+        Progress::Hidden,
+    )
+    .unwrap();
     let flat: Vec<f64> = spn
         .nodes
         .iter()
@@ -201,7 +245,10 @@ fn tied_weights_stay_bit_identical() {
         .collect();
     for orbit in &orbits.orbits {
         for &e in orbit {
-            assert_eq!(flat[e as usize].to_bits(), flat[orbit[0] as usize].to_bits());
+            assert_eq!(
+                flat[e as usize].to_bits(),
+                flat[orbit[0] as usize].to_bits()
+            );
         }
     }
 }
@@ -232,7 +279,13 @@ fn pruning_keeps_a_valid_normalised_spn() {
     let table = mixture_table(5, 3, 2, 3);
     let samples = sample_table(&table, 5, 3, 5_000, 3);
     let mut spn = dense_structure(5, 3, &DenseParams::default(), 4).unwrap();
-    train(&mut spn, &samples, &fixed(0.01, 8, EmKind::Hard), Progress::Hidden).unwrap();
+    train(
+        &mut spn,
+        &samples,
+        &fixed(0.01, 8, EmKind::Hard),
+        Progress::Hidden,
+    )
+    .unwrap();
     let before = num_weights(&spn);
     let removed = prune(&mut spn, 1e-3);
     assert!(removed > 0, "nothing pruned");
@@ -277,7 +330,11 @@ fn bad_input_is_reported() {
     ));
     assert!(matches!(
         train(&mut spn, &[vec![0, 1], vec![0, 3]], &s, Progress::Hidden),
-        Err(TrainError::ClassOutOfRange { index: 1, var: 1, .. })
+        Err(TrainError::ClassOutOfRange {
+            index: 1,
+            var: 1,
+            ..
+        })
     ));
     let zero = TrainingSettings {
         smoothing_end: 0.0,

@@ -37,7 +37,9 @@ pub enum ModelFileError {
         message: String,
     },
     /// The `format` field is missing or not one this version reads.
-    #[error("{source_name}: unsupported model format {found}; this version of graphspn reads format {expected} (re-train or convert the model)")]
+    #[error(
+        "{source_name}: unsupported model format {found}; this version of graphspn reads format {expected} (re-train or convert the model)"
+    )]
     UnsupportedFormat {
         /// File name (or `<string>`).
         source_name: String,
@@ -95,7 +97,11 @@ impl Model {
                     t.num_nodes
                 )));
             }
-            if let Some(v) = spn.classes.iter().position(|&c| c as usize != self.classes.len()) {
+            if let Some(v) = spn
+                .classes
+                .iter()
+                .position(|&c| c as usize != self.classes.len())
+            {
                 return Err(invalid(format!(
                     "SPN of template {:?}: variable {v} has {} classes, the model has {}",
                     t.name,

@@ -57,8 +57,7 @@ pub fn learn_template_spn(
         return Ok((uniform_spn(1, num_classes)?, None));
     }
     let augmented;
-    let data: &[Vec<ClassId>] = if settings.symmetry == Symmetry::None || automorphisms.is_empty()
-    {
+    let data: &[Vec<ClassId>] = if settings.symmetry == Symmetry::None || automorphisms.is_empty() {
         samples
     } else {
         augmented = augment_with_automorphisms(samples, automorphisms);

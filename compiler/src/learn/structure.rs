@@ -59,7 +59,9 @@ impl Default for DenseParams {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum StructureError {
     /// Zero variables or zero classes.
-    #[error("a template SPN needs at least one variable and one class (got {num_vars} variables, {num_classes} classes)")]
+    #[error(
+        "a template SPN needs at least one variable and one class (got {num_vars} variables, {num_classes} classes)"
+    )]
     Empty {
         /// Variables requested.
         num_vars: usize,
@@ -112,7 +114,9 @@ fn check(num_vars: usize, num_classes: u32, params: &DenseParams) -> Result<(), 
     }
     if num_vars > 1 {
         if params.decompositions == 0 {
-            return Err(StructureError::BadParam("decompositions must be ≥ 1".into()));
+            return Err(StructureError::BadParam(
+                "decompositions must be ≥ 1".into(),
+            ));
         }
         if params.subsets < 2 {
             return Err(StructureError::BadParam("subsets must be ≥ 2".into()));
@@ -139,7 +143,11 @@ impl Builder<'_> {
             }
         } else {
             for (i, v) in vars.into_iter().enumerate() {
-                let j = if i < k { i } else { self.rng.random_range(0..k) };
+                let j = if i < k {
+                    i
+                } else {
+                    self.rng.random_range(0..k)
+                };
                 parts[j].push(v);
             }
         }

@@ -28,7 +28,9 @@ use crate::spn::{Node, NodeId, Spn};
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SymmetryError {
     /// The structure has no image of `node` under the permutation.
-    #[error("the SPN structure is not invariant under automorphism #{perm} {permutation:?}: node {node} has no image")]
+    #[error(
+        "the SPN structure is not invariant under automorphism #{perm} {permutation:?}: node {node} has no image"
+    )]
     NotInvariant {
         /// Index of the permutation.
         perm: usize,
@@ -38,7 +40,9 @@ pub enum SymmetryError {
         node: NodeId,
     },
     /// A permutation has the wrong length or is not a bijection.
-    #[error("automorphism #{perm} {permutation:?} is not a permutation of the SPN's {num_vars} variables")]
+    #[error(
+        "automorphism #{perm} {permutation:?} is not a permutation of the SPN's {num_vars} variables"
+    )]
     BadPermutation {
         /// Index of the permutation.
         perm: usize,
@@ -48,7 +52,9 @@ pub enum SymmetryError {
         num_vars: usize,
     },
     /// A child id does not precede its parent.
-    #[error("node {node} has child {child}, which does not precede it (nodes must be in topological order)")]
+    #[error(
+        "node {node} has child {child}, which does not precede it (nodes must be in topological order)"
+    )]
     NotTopological {
         /// The parent.
         node: NodeId,

@@ -50,7 +50,9 @@ pub enum TrainError {
         num_vars: usize,
     },
     /// A class is out of range.
-    #[error("sample {index}: class {class} of variable {var} is out of range (variable has {classes} classes)")]
+    #[error(
+        "sample {index}: class {class} of variable {var} is out of range (variable has {classes} classes)"
+    )]
     ClassOutOfRange {
         /// Index of the sample.
         index: usize,
@@ -109,8 +111,7 @@ impl Progress {
             return ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
         }
         let bar = ProgressBar::new(len);
-        if let Ok(style) = ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg}")
-        {
+        if let Ok(style) = ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg}") {
             bar.set_style(style);
         }
         bar.set_prefix(what.to_string());
@@ -208,7 +209,10 @@ impl Flat {
                     f.children.extend_from_slice(children);
                 }
             }
-            if let Some(&c) = f.children[f.start[id]..].iter().find(|&&c| c as usize >= id) {
+            if let Some(&c) = f.children[f.start[id]..]
+                .iter()
+                .find(|&&c| c as usize >= id)
+            {
                 return Err(bad(format!("child {c} does not precede its parent")));
             }
         }
@@ -508,7 +512,13 @@ pub fn train(
     progress: Progress,
 ) -> Result<TrainingReport, TrainError> {
     let edges = sum_edge_offsets(spn)[spn.nodes.len()];
-    train_tied(spn, samples, settings, &EdgeOrbits::trivial(edges), progress)
+    train_tied(
+        spn,
+        samples,
+        settings,
+        &EdgeOrbits::trivial(edges),
+        progress,
+    )
 }
 
 /// [`train`] with the weights of each orbit of `orbits` kept equal (see
@@ -521,10 +531,8 @@ pub fn train_tied(
     orbits: &EdgeOrbits,
     progress: Progress,
 ) -> Result<TrainingReport, TrainError> {
-    if !(settings.smoothing_start > 0.0 && settings.smoothing_end > 0.0)
-        || !settings.smoothing_start.is_finite()
-        || !settings.smoothing_end.is_finite()
-    {
+    let ok = |s: f64| s > 0.0 && s.is_finite();
+    if !ok(settings.smoothing_start) || !ok(settings.smoothing_end) {
         return Err(TrainError::BadSettings(
             "smoothing must be finite and > 0 (it keeps every weight positive)".into(),
         ));
@@ -703,4 +711,13 @@ pub fn log_likelihood(spn: &Spn, sample: &[ClassId]) -> Result<f64, TrainError> 
     let lw = log_weights(spn);
     let mut s = Scratch::new(f.kind.len());
     Ok(up(&f, &lw, sample, &mut s).0)
+}
+
+/// Log-likelihoods (natural log) of many complete samples, one upward pass each.
+pub fn log_likelihoods(spn: &Spn, samples: &[Vec<ClassId>]) -> Result<Vec<f64>, TrainError> {
+    check_samples(spn, samples)?;
+    let f = Flat::new(spn)?;
+    let lw = log_weights(spn);
+    let mut s = Scratch::new(f.kind.len());
+    Ok(samples.iter().map(|x| up(&f, &lw, x, &mut s).0).collect())
 }
