@@ -345,3 +345,10 @@ fn bad_input_is_reported() {
         Err(TrainError::BadSettings(_))
     ));
 }
+
+#[test]
+fn progress_is_hidden_off_terminal() {
+    // Test output is captured (not a terminal), so even `Auto` draws nothing.
+    assert!(Progress::Auto.bar(10, "training").is_hidden());
+    assert!(Progress::Hidden.bar(10, "training").is_hidden());
+}

@@ -2,10 +2,10 @@
 //!
 //! - [`structure`]: the dense random structure of the paper (and a symmetric
 //!   variant), the uniform Singleton SPN;
-//! - [`train`]: hard / soft EM on complete samples, pruning;
+//! - [`train`](mod@train): hard / soft EM on complete samples, pruning;
 //! - [`symmetry`]: augmentation with template automorphisms and weight tying;
 //! - [`settings`]: [`TrainingSettings`], stored in the model file;
-//! - [`file`]: reading and writing [`Model`] files.
+//! - [`file`](mod@file): reading and writing [`Model`] files.
 
 pub mod file;
 pub mod model;
