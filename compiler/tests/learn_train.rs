@@ -144,7 +144,7 @@ fn augmentation_makes_tables_exactly_symmetric() {
     for (n, group) in [(2usize, pair_group()), (3, three_group())] {
         let table = mixture_table(n, 10, 3, 77);
         let samples = sample_table(&table, n, 10, 5_000, 3);
-        let aug = augment_with_automorphisms(&samples, &group);
+        let aug = augment_with_automorphisms(&samples, &group).unwrap();
         assert_eq!(aug.len(), samples.len() * group.len());
         let mut spn = dense_structure(n, 10, &DenseParams::default(), 2).unwrap();
         train(
@@ -335,6 +335,10 @@ fn bad_input_is_reported() {
             var: 1,
             ..
         })
+    ));
+    assert!(matches!(
+        augment_with_automorphisms(&[vec![0, 1], vec![1]], &pair_group()),
+        Err(TrainError::SampleLength { index: 1, .. })
     ));
     let zero = TrainingSettings {
         smoothing_end: 0.0,

@@ -60,7 +60,7 @@ pub fn learn_template_spn(
     let data: &[Vec<ClassId>] = if settings.symmetry == Symmetry::None || automorphisms.is_empty() {
         samples
     } else {
-        augmented = augment_with_automorphisms(samples, automorphisms);
+        augmented = augment_with_automorphisms(samples, automorphisms)?;
         &augmented
     };
     let (mut spn, orbits) = if settings.symmetry == Symmetry::Tied {

@@ -21,6 +21,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
+use super::train::TrainError;
 use crate::map::ClassId;
 use crate::spn::{Node, NodeId, Spn};
 
@@ -67,18 +68,26 @@ pub enum SymmetryError {
 /// the sample `s'[i] = s[π[i]]` (the component's nodes re-listed in the order
 /// `π`). Output order: for each sample, its images in the order of
 /// `automorphisms`. Include the identity to keep the originals (a template's
-/// automorphism group does). Permutations must have the samples' length.
+/// automorphism group does). Fails when a sample's length differs from a
+/// permutation's or a permutation entry is out of range.
 pub fn augment_with_automorphisms(
     samples: &[Vec<ClassId>],
     automorphisms: &[Vec<usize>],
-) -> Vec<Vec<ClassId>> {
+) -> Result<Vec<Vec<ClassId>>, TrainError> {
     let mut out = Vec::with_capacity(samples.len() * automorphisms.len());
-    for s in samples {
+    for (index, s) in samples.iter().enumerate() {
         for p in automorphisms {
+            if p.len() != s.len() || p.iter().any(|&i| i >= s.len()) {
+                return Err(TrainError::SampleLength {
+                    index,
+                    len: s.len(),
+                    num_vars: p.len(),
+                });
+            }
             out.push(p.iter().map(|&i| s[i]).collect());
         }
     }
-    out
+    Ok(out)
 }
 
 /// Offsets of each node's weights in the flat list of sum edges (node order,
