@@ -3,7 +3,13 @@
 //! augmentation, 10 classes), with the default settings (hard EM, 10 epochs,
 //! smoothing 30 → 5, augmentation with the template automorphisms), and with
 //! tied symmetric weights. Prints a summary (time, distinct tuples, final
-//! log-likelihood per sample) before the criterion measurements.
+//! log-likelihood per sample, asymmetry under the automorphisms) before the
+//! criterion measurements.
+//!
+//! The synthetic data are a pessimistic case for speed: the Star samples have
+//! ~22.6k distinct ordered tuples after augmentation, while all Star matches of
+//! the real Freiburg + Saarbrucken maps give at most ~620 (training cost grows
+//! with the number of distinct tuples, not with the number of samples).
 
 use std::hint::black_box;
 use std::time::Instant;
