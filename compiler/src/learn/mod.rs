@@ -1,5 +1,83 @@
 //! Template SPN structure generation, EM training and the model file.
+//!
+//! - [`structure`]: the dense random structure of the paper (and a symmetric
+//!   variant), the uniform Singleton SPN;
+//! - [`train`](mod@train): hard / soft EM on complete samples, pruning;
+//! - [`symmetry`]: augmentation with template automorphisms and weight tying;
+//! - [`settings`]: [`TrainingSettings`], stored in the model file;
+//! - [`file`](mod@file): reading and writing [`Model`] files.
 
+pub mod file;
 pub mod model;
+pub mod settings;
+pub mod structure;
+pub mod symmetry;
+pub mod train;
 
+pub use file::ModelFileError;
 pub use model::Model;
+pub use settings::{EmKind, Symmetry, TrainingSettings};
+pub use structure::{DenseParams, dense_structure, symmetric_dense_structure, uniform_spn};
+pub use symmetry::{EdgeOrbits, augment_with_automorphisms, edge_orbits};
+pub use train::{Progress, TrainError, TrainingReport, train, train_tied};
+
+use crate::map::ClassId;
+use crate::spn::Spn;
+
+/// Why a template SPN could not be learned.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum LearnError {
+    /// Building the structure failed.
+    #[error(transparent)]
+    Structure(#[from] structure::StructureError),
+    /// The symmetric structure's orbits could not be computed.
+    #[error(transparent)]
+    Symmetry(#[from] symmetry::SymmetryError),
+    /// Training failed.
+    #[error(transparent)]
+    Train(#[from] TrainError),
+}
+
+/// Learns one template SPN: a single variable gets [`uniform_spn`]; otherwise the
+/// samples are augmented with `automorphisms` (unless `settings.symmetry` is
+/// `none`), a dense structure is generated (symmetric and tied for
+/// `Symmetry::Tied`) from `seed`, and trained with `settings`.
+/// `automorphisms` are the template's (including the identity), each mapping
+/// template node `v` to `perm[v]`.
+pub fn learn_template_spn(
+    num_vars: usize,
+    num_classes: u32,
+    automorphisms: &[Vec<usize>],
+    samples: &[Vec<ClassId>],
+    settings: &TrainingSettings,
+    seed: u64,
+    progress: Progress,
+) -> Result<(Spn, Option<TrainingReport>), LearnError> {
+    if num_vars == 1 {
+        return Ok((uniform_spn(1, num_classes)?, None));
+    }
+    let augmented;
+    let data: &[Vec<ClassId>] = if settings.symmetry == Symmetry::None || automorphisms.is_empty() {
+        samples
+    } else {
+        augmented = augment_with_automorphisms(samples, automorphisms)?;
+        &augmented
+    };
+    let (mut spn, orbits) = if settings.symmetry == Symmetry::Tied {
+        let spn = symmetric_dense_structure(
+            num_vars,
+            num_classes,
+            &settings.structure,
+            automorphisms,
+            seed,
+        )?;
+        let orbits = edge_orbits(&spn, automorphisms)?;
+        (spn, orbits)
+    } else {
+        let spn = dense_structure(num_vars, num_classes, &settings.structure, seed)?;
+        let edges = structure::num_weights(&spn);
+        (spn, EdgeOrbits::trivial(edges))
+    };
+    let report = train_tied(&mut spn, data, settings, &orbits, progress)?;
+    Ok((spn, Some(report)))
+}

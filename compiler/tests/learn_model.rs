@@ -1,0 +1,155 @@
+//! The model file: round trip, determinism, format check, error positions.
+
+mod learn_util;
+
+use graphspn_compiler::learn::model::MODEL_FORMAT;
+use graphspn_compiler::learn::{
+    DenseParams, Model, ModelFileError, Progress, TrainingSettings, dense_structure,
+    learn_template_spn, uniform_spn,
+};
+use graphspn_compiler::map::ClassSet;
+use graphspn_compiler::spn::Node;
+use graphspn_compiler::template::Template;
+use learn_util::*;
+
+fn small_model() -> Model {
+    let settings = TrainingSettings {
+        epochs: 3,
+        seed: 42,
+        ..TrainingSettings::default()
+    };
+    let table = mixture_table(3, 10, 2, 3);
+    let samples = sample_table(&table, 3, 10, 2_000, 3);
+    let (three, _) = learn_template_spn(
+        3,
+        10,
+        &three_group(),
+        &samples,
+        &settings,
+        1,
+        Progress::Hidden,
+    )
+    .unwrap();
+    Model {
+        format: MODEL_FORMAT,
+        classes: ClassSet::paper(),
+        templates: vec![Template::three(), Template::pair(), Template::singleton()],
+        spns: vec![
+            three,
+            dense_structure(2, 10, &DenseParams::default(), 2).unwrap(),
+            uniform_spn(1, 10).unwrap(),
+        ],
+        settings: settings.to_value(),
+        trained_on: vec!["Freiburg/seq1".into()],
+    }
+}
+
+#[test]
+fn save_load_round_trips_exactly() {
+    let model = small_model();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("model.json");
+    model.save(&path).unwrap();
+    let back = Model::load(&path).unwrap();
+    assert_eq!(back, model);
+    // Bit-exact weights (PartialEq on f64 would also accept -0.0 == 0.0).
+    for (a, b) in model.spns.iter().zip(&back.spns) {
+        for (na, nb) in a.nodes.iter().zip(&b.nodes) {
+            if let (Node::Sum { weights: wa, .. }, Node::Sum { weights: wb, .. }) = (na, nb) {
+                for (x, y) in wa.iter().zip(wb) {
+                    assert_eq!(x.to_bits(), y.to_bits());
+                }
+            }
+        }
+    }
+    // Deterministic output: saving again gives the same bytes.
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(back.to_json().unwrap(), text);
+    assert!(text.ends_with('\n'));
+    assert!(text.starts_with("{\n  \"format\": 1,"));
+    // Settings survive.
+    assert_eq!(back.training_settings().unwrap().seed, 42);
+    assert_eq!(back.training_settings().unwrap().epochs, 3);
+}
+
+#[test]
+fn default_settings_are_the_authors() {
+    let s = TrainingSettings::default();
+    assert_eq!(s.decompositions_per_map, 10);
+    assert_eq!(s.structure, DenseParams::default());
+    assert_eq!(
+        (
+            s.structure.decompositions,
+            s.structure.subsets,
+            s.structure.sums
+        ),
+        (1, 3, 5)
+    );
+    assert!(s.structure.balanced);
+    assert_eq!(s.epochs, 10);
+    assert_eq!((s.smoothing_start, s.smoothing_end), (30.0, 5.0));
+    assert_eq!(s.batch_size, 2000);
+    assert_eq!(s.symmetry, graphspn_compiler::learn::Symmetry::Tied);
+    // Missing fields default; unknown ones are rejected.
+    let v: serde_json::Value = serde_json::json!({"epochs": 4});
+    assert_eq!(TrainingSettings::from_value(&v).unwrap().epochs, 4);
+    let bad: serde_json::Value = serde_json::json!({"epocs": 4});
+    assert!(TrainingSettings::from_value(&bad).is_err());
+}
+
+#[test]
+fn unknown_format_is_rejected_clearly() {
+    let text = small_model()
+        .to_json()
+        .unwrap()
+        .replace("\"format\": 1", "\"format\": 99");
+    let err = Model::from_json_named(&text, "m.json").unwrap_err();
+    assert!(matches!(err, ModelFileError::UnsupportedFormat { .. }));
+    let msg = err.to_string();
+    assert!(
+        msg.contains("m.json") && msg.contains("99") && msg.contains("format 1"),
+        "{msg}"
+    );
+    let err = Model::from_json("{\"classes\": []}").unwrap_err();
+    assert!(err.to_string().contains("missing"), "{err}");
+}
+
+#[test]
+fn errors_name_file_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.json");
+    let mut text = small_model().to_json().unwrap();
+    // Break a weight on some line.
+    let pos = text.find("\"weights\": [").unwrap() + "\"weights\": [".len();
+    text.insert_str(pos, "oops");
+    std::fs::write(&path, &text).unwrap();
+    let line = text[..pos].lines().count();
+    match Model::load(&path).unwrap_err() {
+        ModelFileError::Parse {
+            source_name,
+            line: l,
+            column,
+            ..
+        } => {
+            assert!(source_name.ends_with("broken.json"));
+            assert_eq!(l, line);
+            assert!(column > 0);
+        }
+        other => panic!("unexpected {other}"),
+    }
+    let missing = Model::load(dir.path().join("nope.json")).unwrap_err();
+    assert!(missing.to_string().contains("nope.json"));
+    // Inconsistent models are refused on save.
+    let mut m = small_model();
+    m.spns.pop();
+    assert!(matches!(
+        m.save(dir.path().join("x.json")),
+        Err(ModelFileError::Invalid { .. })
+    ));
+    let mut m = small_model();
+    if let Node::Sum { weights, .. } = &mut m.spns[1].nodes.last_mut().unwrap() {
+        weights[0] = f64::NAN;
+    }
+    let err = m.to_json().unwrap_err().to_string();
+    assert!(err.contains("pair") && err.contains("node"), "{err}");
+}

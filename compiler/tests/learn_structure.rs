@@ -1,0 +1,174 @@
+//! Dense structure generation: sizes with the authors' settings, validity
+//! (completeness, decomposability, normalisation), determinism, symmetry closure.
+
+mod learn_util;
+
+use std::collections::BTreeSet;
+
+use graphspn_compiler::learn::structure::num_weights;
+use graphspn_compiler::learn::{
+    DenseParams, dense_structure, edge_orbits, symmetric_dense_structure, uniform_spn,
+};
+use graphspn_compiler::spn::{Node, Spn};
+use learn_util::*;
+
+/// Scopes of all nodes; asserts completeness, decomposability, topological
+/// order and normalised non-negative weights.
+fn check_valid(spn: &Spn) -> Vec<BTreeSet<u32>> {
+    let mut scopes: Vec<BTreeSet<u32>> = Vec::new();
+    for (i, n) in spn.nodes.iter().enumerate() {
+        let s = match n {
+            Node::Leaf { var, class } => {
+                assert!(*class < spn.classes[*var as usize]);
+                BTreeSet::from([*var])
+            }
+            Node::Sum { children, weights } => {
+                assert!(!children.is_empty());
+                assert_eq!(children.len(), weights.len());
+                assert!(children.iter().all(|&c| (c as usize) < i), "node {i}");
+                let first = &scopes[children[0] as usize];
+                for &c in children {
+                    assert_eq!(&scopes[c as usize], first, "sum {i} is not complete");
+                }
+                assert!(weights.iter().all(|w| *w > 0.0 && w.is_finite()));
+                let z: f64 = weights.iter().sum();
+                assert!((z - 1.0).abs() < 1e-12, "sum {i} weights add to {z}");
+                first.clone()
+            }
+            Node::Product { children } => {
+                assert!(children.iter().all(|&c| (c as usize) < i));
+                let mut s = BTreeSet::new();
+                for &c in children {
+                    for &v in &scopes[c as usize] {
+                        assert!(s.insert(v), "product {i} is not decomposable");
+                    }
+                }
+                s
+            }
+        };
+        scopes.push(s);
+    }
+    let all: BTreeSet<u32> = (0..spn.num_vars() as u32).collect();
+    assert_eq!(scopes[spn.root as usize], all);
+    scopes
+}
+
+fn root_children(spn: &Spn) -> Vec<u32> {
+    match &spn.nodes[spn.root as usize] {
+        Node::Sum { children, .. } => children.clone(),
+        other => panic!("root is not a sum: {other:?}"),
+    }
+}
+
+#[test]
+fn authors_settings_give_the_paper_sizes() {
+    let p = DenseParams::default();
+    for seed in 0..5 {
+        let pair = dense_structure(2, 10, &p, seed).unwrap();
+        check_valid(&pair);
+        assert_eq!(root_children(&pair).len(), 100);
+        assert_eq!(num_weights(&pair), 100);
+
+        let three = dense_structure(3, 10, &p, seed).unwrap();
+        check_valid(&three);
+        assert_eq!(root_children(&three).len(), 1000);
+        assert_eq!(num_weights(&three), 1000);
+
+        let star = dense_structure(5, 10, &p, seed).unwrap();
+        let scopes = check_valid(&star);
+        assert_eq!(num_weights(&star), 1250, "seed {seed}");
+        // Root products split the five variables into {2, 2, 1}.
+        let kids = root_children(&star);
+        assert_eq!(kids.len(), 250);
+        let Node::Product { children } = &star.nodes[kids[0] as usize] else {
+            panic!("root child is not a product")
+        };
+        let mut sizes: Vec<usize> = children.iter().map(|&c| scopes[c as usize].len()).collect();
+        sizes.sort_unstable();
+        assert_eq!(sizes, vec![1, 2, 2]);
+    }
+}
+
+#[test]
+fn distributions_are_normalised() {
+    let p = DenseParams::default();
+    for (n, c) in [(2usize, 10u16), (3, 6), (5, 3), (4, 3)] {
+        let spn = dense_structure(n, u32::from(c), &p, 7).unwrap();
+        let z: f64 = all_assignments(n, c).iter().map(|x| value(&spn, x)).sum();
+        assert!((z - 1.0).abs() < 1e-12, "n={n} c={c}: total mass {z}");
+    }
+    // Several decompositions, unbalanced subsets: still valid and normalised.
+    let p2 = DenseParams {
+        decompositions: 3,
+        subsets: 2,
+        sums: 2,
+        balanced: false,
+    };
+    let spn = dense_structure(5, 3, &p2, 11).unwrap();
+    check_valid(&spn);
+    let z: f64 = all_assignments(5, 3).iter().map(|x| value(&spn, x)).sum();
+    assert!((z - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn initial_weights_are_near_uniform_and_seeded() {
+    let p = DenseParams::default();
+    let a = dense_structure(5, 10, &p, 3).unwrap();
+    let b = dense_structure(5, 10, &p, 3).unwrap();
+    assert_eq!(a, b);
+    for n in &a.nodes {
+        if let Node::Sum { weights, .. } = n {
+            let u = 1.0 / weights.len() as f64;
+            assert!(weights.iter().all(|w| (w / u - 1.0).abs() < 0.011));
+            assert!(weights.iter().any(|w| *w != u), "no jitter");
+        }
+    }
+    // Different seeds give different structures or weights.
+    let c = dense_structure(5, 10, &p, 4).unwrap();
+    assert_ne!(a, c);
+}
+
+#[test]
+fn uniform_singleton() {
+    let s = uniform_spn(1, 10).unwrap();
+    check_valid(&s);
+    for k in 0..10 {
+        assert!((value(&s, &[k]) - 0.1).abs() < 1e-15);
+    }
+    assert!(uniform_spn(0, 10).is_err());
+    assert!(dense_structure(3, 0, &DenseParams::default(), 0).is_err());
+}
+
+#[test]
+fn symmetric_structure_is_closed_and_invariant() {
+    let p = DenseParams::default();
+    for seed in 0..6 {
+        let star = symmetric_dense_structure(5, 3, &p, &star_group(), seed).unwrap();
+        check_valid(&star);
+        let w = num_weights(&star);
+        // The split with fewest images, {P},{x,y},{z,w}: 3 splits × (3·5·5)
+        // root products + 6 leaf pairs × 5 sums × 9 weights.
+        assert_eq!(w, 3 * 75 + 6 * 45, "seed {seed}");
+        let orbits = edge_orbits(&star, &star_group()).unwrap();
+        assert!(!orbits.is_trivial());
+        // Tied initial weights: value invariant under every automorphism.
+        for x in all_assignments(5, 3) {
+            let v = value(&star, &x);
+            for g in star_group() {
+                let y: Vec<u16> = g.iter().map(|&i| x[i]).collect();
+                assert!((value(&star, &y) - v).abs() <= 1e-14 * v, "seed {seed}");
+            }
+        }
+    }
+    // With 10 classes the symmetric Star has 3,750 weights; Three and Pair stay
+    // full tables.
+    let s10 = symmetric_dense_structure(5, 10, &p, &star_group(), 0).unwrap();
+    assert_eq!(num_weights(&s10), 3750);
+    let t10 = symmetric_dense_structure(3, 10, &p, &three_group(), 0).unwrap();
+    assert_eq!(num_weights(&t10), 1000);
+    let p10 = symmetric_dense_structure(2, 10, &p, &pair_group(), 0).unwrap();
+    assert_eq!(num_weights(&p10), 100);
+    // The plain structure of the Star is not invariant under all leaf swaps.
+    let plain = dense_structure(5, 3, &p, 0).unwrap();
+    assert!(edge_orbits(&plain, &star_group()).is_err());
+}

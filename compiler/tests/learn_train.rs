@@ -1,0 +1,358 @@
+//! EM training: exact M-step on full tables, monotone objective, convergence to
+//! the sampling distribution, symmetry after augmentation / tying, pruning.
+
+mod learn_util;
+
+use graphspn_compiler::learn::structure::num_weights;
+use graphspn_compiler::learn::train::{dedupe, log_likelihood, prune};
+use graphspn_compiler::learn::{
+    DenseParams, EmKind, Progress, Symmetry, TrainError, TrainingSettings,
+    augment_with_automorphisms, dense_structure, edge_orbits, learn_template_spn,
+    symmetric_dense_structure, train, train_tied,
+};
+use graphspn_compiler::spn::Node;
+use learn_util::*;
+
+fn fixed(s: f64, epochs: usize, em: EmKind) -> TrainingSettings {
+    TrainingSettings {
+        epochs,
+        smoothing_start: s,
+        smoothing_end: s,
+        em,
+        ..TrainingSettings::default()
+    }
+}
+
+/// KL(p || q) in nats over a full table.
+fn kl(p: &[f64], q: &[f64]) -> f64 {
+    p.iter()
+        .zip(q)
+        .filter(|(a, _)| **a > 0.0)
+        .map(|(a, b)| a * (a / b).ln())
+        .sum()
+}
+
+#[test]
+fn full_tables_learn_smoothed_frequencies() {
+    // Pair (10×10) and Three (10×10×10) are single sums over all tuples: hard EM
+    // must give exactly (count + s_last) / (N + C^n · s_last).
+    for (n, m, max_kl) in [(2usize, 20_000usize, 0.02), (3, 30_000, 0.12)] {
+        let table = mixture_table(n, 10, 3, 40 + n as u64);
+        let samples = sample_table(&table, n, 10, m, 1);
+        let mut spn = dense_structure(n, 10, &DenseParams::default(), 5).unwrap();
+        let settings = TrainingSettings::default();
+        let rep = train(&mut spn, &samples, &settings, Progress::Hidden).unwrap();
+        assert_eq!(rep.log_likelihood_per_epoch.len(), 10);
+        let s = settings.smoothing_end;
+        let cells = 10f64.powi(n as i32);
+        let mut counts = vec![0.0; table.len()];
+        for x in &samples {
+            counts[index_of(x, 10)] += 1.0;
+        }
+        let assignments = all_assignments(n, 10);
+        let q: Vec<f64> = assignments.iter().map(|x| value(&spn, x)).collect();
+        for (i, x) in assignments.iter().enumerate() {
+            let expect = (counts[i] + s) / (m as f64 + cells * s);
+            assert!(
+                (q[i] - expect).abs() <= 1e-12 * expect,
+                "n={n} {x:?}: {} vs {expect}",
+                q[i]
+            );
+        }
+        let d = kl(&table, &q);
+        assert!(d < max_kl, "n={n}: KL(true || learned) = {d}");
+        // Reported log-likelihood agrees with the independent evaluator.
+        let ll: f64 = samples.iter().map(|x| value(&spn, x).ln()).sum::<f64>() / m as f64;
+        let last = *rep.log_likelihood_per_epoch.last().unwrap();
+        assert!((ll - last).abs() < 1e-9, "{ll} vs {last}");
+    }
+}
+
+#[test]
+fn hard_em_objective_is_monotone_with_fixed_smoothing() {
+    for seed in 0..3 {
+        let table = mixture_table(5, 4, 4, 100 + seed);
+        let samples = sample_table(&table, 5, 4, 5_000, seed);
+        for em in [EmKind::Hard, EmKind::Soft] {
+            let mut spn = dense_structure(5, 4, &DenseParams::default(), seed).unwrap();
+            let rep = train(&mut spn, &samples, &fixed(2.0, 12, em), Progress::Hidden).unwrap();
+            let obj = &rep.objective_per_epoch;
+            for w in obj.windows(2) {
+                assert!(
+                    w[1] >= w[0] - 1e-9,
+                    "{em:?} seed {seed}: objective fell {obj:?}"
+                );
+            }
+            assert!(obj[obj.len() - 1] > obj[0]);
+            let ll = &rep.log_likelihood_per_epoch;
+            assert!(
+                ll[ll.len() - 1] > rep.initial_log_likelihood,
+                "{em:?} {ll:?}"
+            );
+            if em == EmKind::Soft {
+                // Soft EM's objective is the true likelihood (plus the prior).
+                for w in ll.windows(2) {
+                    assert!(w[1] >= w[0] - 1e-3, "{ll:?}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn decaying_schedule_raises_likelihood_and_beats_independence() {
+    let table = mixture_table(5, 4, 3, 9);
+    let samples = sample_table(&table, 5, 4, 20_000, 2);
+    let mut spn = dense_structure(5, 4, &DenseParams::default(), 1).unwrap();
+    let settings = TrainingSettings::default();
+    let rep = train(&mut spn, &samples, &settings, Progress::Hidden).unwrap();
+    let ll = &rep.log_likelihood_per_epoch;
+    assert!(
+        ll[ll.len() - 1] > rep.initial_log_likelihood + 0.1,
+        "{ll:?}"
+    );
+    assert_eq!(rep.smoothing_per_epoch[0], 30.0);
+    assert_eq!(*rep.smoothing_per_epoch.last().unwrap(), 5.0);
+    // The learned model is normalised and close to the truth.
+    let assignments = all_assignments(5, 4);
+    let q: Vec<f64> = assignments.iter().map(|x| value(&spn, x)).collect();
+    let z: f64 = q.iter().sum();
+    assert!((z - 1.0).abs() < 1e-12);
+    let d = kl(&table, &q);
+    // Independence (product of marginals) as a baseline to beat.
+    let mut marg = vec![vec![0.0; 4]; 5];
+    for x in &samples {
+        for (i, &c) in x.iter().enumerate() {
+            marg[i][c as usize] += 1.0 / samples.len() as f64;
+        }
+    }
+    let indep: Vec<f64> = assignments
+        .iter()
+        .map(|x| {
+            x.iter()
+                .enumerate()
+                .map(|(i, &c)| marg[i][c as usize])
+                .product()
+        })
+        .collect();
+    let d_indep = kl(&table, &indep);
+    assert!(d < d_indep, "KL learned {d} vs independent {d_indep}");
+}
+
+#[test]
+fn augmentation_makes_tables_exactly_symmetric() {
+    for (n, group) in [(2usize, pair_group()), (3, three_group())] {
+        let table = mixture_table(n, 10, 3, 77);
+        let samples = sample_table(&table, n, 10, 5_000, 3);
+        let aug = augment_with_automorphisms(&samples, &group).unwrap();
+        assert_eq!(aug.len(), samples.len() * group.len());
+        let mut spn = dense_structure(n, 10, &DenseParams::default(), 2).unwrap();
+        train(
+            &mut spn,
+            &aug,
+            &TrainingSettings::default(),
+            Progress::Hidden,
+        )
+        .unwrap();
+        for x in all_assignments(n, 10) {
+            for g in &group {
+                let y: Vec<u16> = g.iter().map(|&i| x[i]).collect();
+                assert_eq!(value(&spn, &x), value(&spn, &y), "{x:?} vs {y:?}");
+            }
+        }
+    }
+}
+
+/// Largest |log p(x) − log p(g·x)| over all assignments and automorphisms.
+fn asymmetry(spn: &graphspn_compiler::spn::Spn, c: u16) -> f64 {
+    let mut worst = 0.0f64;
+    for x in all_assignments(5, c) {
+        let v = value(spn, &x).ln();
+        for g in star_group() {
+            let y: Vec<u16> = g.iter().map(|&i| x[i]).collect();
+            worst = worst.max((value(spn, &y).ln() - v).abs());
+        }
+    }
+    worst
+}
+
+#[test]
+fn star_symmetry_augmented_vs_tied() {
+    let table = mixture_table(5, 4, 3, 5);
+    let samples = sample_table(&table, 5, 4, 3_000, 4);
+    let settings = TrainingSettings {
+        symmetry: Symmetry::Augment,
+        ..TrainingSettings::default()
+    };
+    let (aug, _) = learn_template_spn(
+        5,
+        4,
+        &star_group(),
+        &samples,
+        &settings,
+        1,
+        Progress::Hidden,
+    )
+    .unwrap();
+    let tied_settings = TrainingSettings {
+        symmetry: Symmetry::Tied,
+        ..settings.clone()
+    };
+    let (tied, rep) = learn_template_spn(
+        5,
+        4,
+        &star_group(),
+        &samples,
+        &tied_settings,
+        1,
+        Progress::Hidden,
+    )
+    .unwrap();
+    let a = asymmetry(&aug, 4);
+    let t = asymmetry(&tied, 4);
+    eprintln!("star asymmetry max |Δ log p|: augmented {a:.3e}, tied {t:.3e}");
+    assert!(t < 1e-12, "tied: {t}");
+    assert!(a > t);
+    let rep = rep.unwrap();
+    assert_eq!(rep.num_samples, samples.len() * 24);
+    assert!(rep.num_distinct < rep.num_samples);
+}
+
+#[test]
+fn tied_weights_stay_bit_identical() {
+    let table = mixture_table(3, 5, 2, 8);
+    let samples = sample_table(&table, 3, 5, 2_000, 8);
+    let mut spn =
+        symmetric_dense_structure(3, 5, &DenseParams::default(), &three_group(), 3).unwrap();
+    let orbits = edge_orbits(&spn, &three_group()).unwrap();
+    // No augmentation: the data are asymmetric, tying alone must symmetrise.
+    train_tied(
+        &mut spn,
+        &samples,
+        &TrainingSettings::default(),
+        &orbits,
+        Progress::Hidden,
+    )
+    .unwrap();
+    let flat: Vec<f64> = spn
+        .nodes
+        .iter()
+        .filter_map(|n| match n {
+            Node::Sum { weights, .. } => Some(weights.clone()),
+            _ => None,
+        })
+        .flatten()
+        .collect();
+    for orbit in &orbits.orbits {
+        for &e in orbit {
+            assert_eq!(
+                flat[e as usize].to_bits(),
+                flat[orbit[0] as usize].to_bits()
+            );
+        }
+    }
+}
+
+#[test]
+fn dedupe_counts_multiplicity_and_training_is_deterministic() {
+    let samples = vec![vec![1u16, 2], vec![0, 0], vec![1, 2], vec![1, 2]];
+    assert_eq!(dedupe(&samples), vec![(vec![0, 0], 1), (vec![1, 2], 3)]);
+    let table = mixture_table(5, 3, 2, 1);
+    let s = sample_table(&table, 5, 3, 2_000, 1);
+    let run = |batch| {
+        let mut spn = dense_structure(5, 3, &DenseParams::default(), 9).unwrap();
+        let set = TrainingSettings {
+            batch_size: batch,
+            ..TrainingSettings::default()
+        };
+        let rep = train(&mut spn, &s, &set, Progress::Hidden).unwrap();
+        (spn, rep)
+    };
+    let (a, ra) = run(2000);
+    let (b, rb) = run(7);
+    assert_eq!(a, b, "batch size changed the result");
+    assert_eq!(ra.log_likelihood_per_epoch, rb.log_likelihood_per_epoch);
+}
+
+#[test]
+fn pruning_keeps_a_valid_normalised_spn() {
+    let table = mixture_table(5, 3, 2, 3);
+    let samples = sample_table(&table, 5, 3, 5_000, 3);
+    let mut spn = dense_structure(5, 3, &DenseParams::default(), 4).unwrap();
+    train(
+        &mut spn,
+        &samples,
+        &fixed(0.01, 8, EmKind::Hard),
+        Progress::Hidden,
+    )
+    .unwrap();
+    let before = num_weights(&spn);
+    let removed = prune(&mut spn, 1e-3);
+    assert!(removed > 0, "nothing pruned");
+    assert!(num_weights(&spn) < before);
+    let z: f64 = all_assignments(5, 3).iter().map(|x| value(&spn, x)).sum();
+    assert!((z - 1.0).abs() < 1e-12, "mass {z}");
+    for (i, n) in spn.nodes.iter().enumerate() {
+        if let Node::Sum { children, .. } | Node::Product { children } = n {
+            assert!(!children.is_empty());
+            assert!(children.iter().all(|&c| (c as usize) < i));
+        }
+    }
+    // Every node is reachable: pruning dropped the orphans.
+    let mut live = vec![false; spn.nodes.len()];
+    live[spn.root as usize] = true;
+    for i in (0..spn.nodes.len()).rev() {
+        if live[i] {
+            if let Node::Sum { children, .. } | Node::Product { children } = &spn.nodes[i] {
+                for &c in children {
+                    live[c as usize] = true;
+                }
+            }
+        }
+    }
+    assert!(live.iter().all(|l| *l));
+    // log_likelihood agrees with the oracle.
+    let x = &samples[0];
+    assert!((log_likelihood(&spn, x).unwrap() - value(&spn, x).ln()).abs() < 1e-12);
+}
+
+#[test]
+fn bad_input_is_reported() {
+    let mut spn = dense_structure(2, 3, &DenseParams::default(), 0).unwrap();
+    let s = TrainingSettings::default();
+    assert_eq!(
+        train(&mut spn, &[], &s, Progress::Hidden),
+        Err(TrainError::NoSamples)
+    );
+    assert!(matches!(
+        train(&mut spn, &[vec![0, 1, 2]], &s, Progress::Hidden),
+        Err(TrainError::SampleLength { index: 0, .. })
+    ));
+    assert!(matches!(
+        train(&mut spn, &[vec![0, 1], vec![0, 3]], &s, Progress::Hidden),
+        Err(TrainError::ClassOutOfRange {
+            index: 1,
+            var: 1,
+            ..
+        })
+    ));
+    assert!(matches!(
+        augment_with_automorphisms(&[vec![0, 1], vec![1]], &pair_group()),
+        Err(TrainError::SampleLength { index: 1, .. })
+    ));
+    let zero = TrainingSettings {
+        smoothing_end: 0.0,
+        ..s
+    };
+    assert!(matches!(
+        train(&mut spn, &[vec![0, 1]], &zero, Progress::Hidden),
+        Err(TrainError::BadSettings(_))
+    ));
+}
+
+#[test]
+fn progress_is_hidden_off_terminal() {
+    // Test output is captured (not a terminal), so even `Auto` draws nothing.
+    assert!(Progress::Auto.bar(10, "training").is_hidden());
+    assert!(Progress::Hidden.bar(10, "training").is_hidden());
+}

@@ -1,0 +1,141 @@
+//! Shared helpers for the learning tests: automorphism groups, a brute-force
+//! SPN evaluator (independent of the training passes) and a synthetic sampler.
+#![allow(dead_code)]
+
+use graphspn_compiler::map::ClassId;
+use graphspn_compiler::spn::{Node, Spn};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_chacha::rand_core::SeedableRng;
+
+/// All permutations of `items`.
+pub fn permutations(items: &[usize]) -> Vec<Vec<usize>> {
+    if items.len() <= 1 {
+        return vec![items.to_vec()];
+    }
+    let mut out = Vec::new();
+    for i in 0..items.len() {
+        let mut rest = items.to_vec();
+        let x = rest.remove(i);
+        for mut p in permutations(&rest) {
+            p.insert(0, x);
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// Automorphisms of Pair (P–A): identity and the swap.
+pub fn pair_group() -> Vec<Vec<usize>> {
+    vec![vec![0, 1], vec![1, 0]]
+}
+
+/// Automorphisms of Three (A–P–B, order [P, A, B]).
+pub fn three_group() -> Vec<Vec<usize>> {
+    vec![vec![0, 1, 2], vec![0, 2, 1]]
+}
+
+/// Automorphisms of Star (order [P, A, B, C, D]): P fixed, leaves permuted (24).
+pub fn star_group() -> Vec<Vec<usize>> {
+    permutations(&[1, 2, 3, 4])
+        .into_iter()
+        .map(|p| {
+            let mut v = vec![0];
+            v.extend(p);
+            v
+        })
+        .collect()
+}
+
+/// Linear-space value of the SPN for a complete assignment, by plain recursion
+/// over the node list (an oracle independent of `learn::train`).
+pub fn value(spn: &Spn, x: &[ClassId]) -> f64 {
+    let mut v = vec![0.0f64; spn.nodes.len()];
+    for (i, n) in spn.nodes.iter().enumerate() {
+        v[i] = match n {
+            Node::Leaf { var, class } => f64::from(u8::from(u32::from(x[*var as usize]) == *class)),
+            Node::Sum { children, weights } => children
+                .iter()
+                .zip(weights)
+                .map(|(&c, w)| w * v[c as usize])
+                .sum(),
+            Node::Product { children } => children.iter().map(|&c| v[c as usize]).product(),
+        };
+    }
+    v[spn.root as usize]
+}
+
+/// All assignments of `n` variables with `c` classes.
+pub fn all_assignments(n: usize, c: u16) -> Vec<Vec<ClassId>> {
+    let mut out = vec![vec![]];
+    for _ in 0..n {
+        let mut next = Vec::new();
+        for a in &out {
+            for k in 0..c {
+                let mut b = a.clone();
+                b.push(k);
+                next.push(b);
+            }
+        }
+        out = next;
+    }
+    out
+}
+
+/// A structured random distribution over `n` variables with `c` classes: a
+/// mixture of `k` product distributions with peaked factors. Returns the full
+/// joint table (index = mixed radix, variable 0 most significant).
+pub fn mixture_table(n: usize, c: u16, k: usize, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mix: Vec<f64> = (0..k).map(|_| 0.2 + rng.random::<f64>()).collect();
+    let zm: f64 = mix.iter().sum();
+    let factors: Vec<Vec<Vec<f64>>> = (0..k)
+        .map(|_| {
+            (0..n)
+                .map(|_| {
+                    let f: Vec<f64> = (0..c).map(|_| rng.random::<f64>().powi(4) + 0.01).collect();
+                    let z: f64 = f.iter().sum();
+                    f.into_iter().map(|x| x / z).collect()
+                })
+                .collect()
+        })
+        .collect();
+    all_assignments(n, c)
+        .iter()
+        .map(|x| {
+            (0..k)
+                .map(|j| {
+                    mix[j] / zm
+                        * x.iter()
+                            .enumerate()
+                            .map(|(i, &xi)| factors[j][i][xi as usize])
+                            .product::<f64>()
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// Index of an assignment in a table from [`mixture_table`].
+pub fn index_of(x: &[ClassId], c: u16) -> usize {
+    x.iter().fold(0, |acc, &v| acc * c as usize + v as usize)
+}
+
+/// `m` samples from a joint table (seeded).
+pub fn sample_table(table: &[f64], n: usize, c: u16, m: usize, seed: u64) -> Vec<Vec<ClassId>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let assignments = all_assignments(n, c);
+    let mut cdf = Vec::with_capacity(table.len());
+    let mut acc = 0.0;
+    for p in table {
+        acc += p;
+        cdf.push(acc);
+    }
+    (0..m)
+        .map(|_| {
+            let u = rng.random::<f64>() * acc;
+            let i = cdf.partition_point(|&x| x < u).min(table.len() - 1);
+            assignments[i].clone()
+        })
+        .collect()
+}
