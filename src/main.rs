@@ -2,6 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
+mod cli;
+
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use graphspn_compiler::map::stats::{MapStats, comparison_table};
@@ -54,6 +56,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Learn a model (one template SPN per sub-graph template) from annotated COLD maps.
+    Train(cli::train::TrainArgs),
     /// Generate a synthetic office floor and save it as a JSON map.
     Generate {
         /// Number of places (10..=100000).
@@ -163,6 +167,7 @@ fn main() -> Result<()> {
                 .with_context(|| format!("writing {}", out.display()))?;
             eprintln!("wrote {} ({} places)", out.display(), m.num_places());
         }
+        Command::Train(args) => cli::train::run(args)?,
         Command::Generate { places, seed, out } => {
             let m = synthetic(places, seed)?;
             m.save(&out)?;

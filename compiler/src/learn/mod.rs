@@ -8,6 +8,7 @@
 //! - [`file`](mod@file): reading and writing [`Model`] files.
 
 pub mod file;
+pub mod from_maps;
 pub mod model;
 pub mod settings;
 pub mod structure;
@@ -15,6 +16,7 @@ pub mod symmetry;
 pub mod train;
 
 pub use file::ModelFileError;
+pub use from_maps::{TemplateTraining, TrainModelError, template_samples, train_model};
 pub use model::Model;
 pub use settings::{EmKind, Symmetry, TrainingSettings};
 pub use structure::{DenseParams, dense_structure, symmetric_dense_structure, uniform_spn};

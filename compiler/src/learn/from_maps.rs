@@ -1,0 +1,203 @@
+//! Learning a whole [`Model`] from annotated maps: decompose every training map
+//! several times per template, turn every component into a sample of its places'
+//! ground-truth classes (canonical template order), and train one template SPN each.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use super::model::MODEL_FORMAT;
+use super::train::{Progress, TrainingReport};
+use super::{LearnError, Model, TrainingSettings, learn_template_spn};
+use crate::decompose::{DecomposeError, decompose};
+use crate::map::{ClassId, TopoMap};
+use crate::template::Template;
+
+/// Why a model could not be learned from maps.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainModelError {
+    /// No training maps were given.
+    #[error("no training maps given")]
+    NoMaps,
+    /// The template list is empty.
+    #[error("no templates given")]
+    NoTemplates,
+    /// Two training maps use different class sets.
+    #[error("map {map:?} has classes {found:?}, but {first:?} has {expected:?}")]
+    ClassMismatch {
+        /// The map that differs.
+        map: String,
+        /// Its classes.
+        found: Vec<String>,
+        /// The first map.
+        first: String,
+        /// The first map's classes.
+        expected: Vec<String>,
+    },
+    /// Decomposing a training map failed.
+    #[error("decomposing training map {map:?}: {source}")]
+    Decompose {
+        /// The map.
+        map: String,
+        /// What failed.
+        source: DecomposeError,
+    },
+    /// A template got no training sample at all.
+    #[error("template {0:?} matched nowhere in the training maps: no samples to learn from")]
+    NoSamples(String),
+    /// Learning a template SPN failed.
+    #[error("learning the SPN of template {template:?}: {source}")]
+    Learn {
+        /// Template name.
+        template: String,
+        /// What failed.
+        source: LearnError,
+    },
+}
+
+/// What [`train_model`] learned, per template.
+#[derive(Clone, Debug)]
+pub struct TemplateTraining {
+    /// Template name.
+    pub template: String,
+    /// Samples collected from the maps (before augmentation).
+    pub samples: usize,
+    /// The EM report (`None` for single-node templates, which are uniform).
+    pub report: Option<TrainingReport>,
+}
+
+/// Seed of one random step, derived from the master seed and up to three indices,
+/// so each step's randomness is independent of the others and of thread scheduling.
+fn derive_seed(master: u64, a: u64, b: u64, c: u64) -> u64 {
+    // SplitMix64-style mixing of the inputs.
+    let mut z = master
+        ^ a.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ b.wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ c.wrapping_mul(0x1656_67B1_9E37_79F9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The training samples of `template` (index `t` in the list) from `maps`: each map is
+/// decomposed `settings.decompositions_per_map` times with `template` alone (and a
+/// singleton for the rest), and each of its components whose places all have a
+/// ground-truth class gives one sample (plus its reverse when `settings.add_reversed`).
+pub fn template_samples(
+    maps: &[TopoMap],
+    template: &Template,
+    t: usize,
+    settings: &TrainingSettings,
+) -> Result<Vec<Vec<ClassId>>, TrainModelError> {
+    let templates = if template.num_nodes == 1 {
+        vec![template.clone()]
+    } else {
+        vec![template.clone(), Template::singleton()]
+    };
+    let per_map: Vec<Result<Vec<Vec<ClassId>>, TrainModelError>> = maps
+        .par_iter()
+        .enumerate()
+        .map(|(m, map)| {
+            let mut out = Vec::new();
+            for round in 0..settings.decompositions_per_map {
+                let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(
+                    settings.seed,
+                    t as u64,
+                    m as u64,
+                    round as u64,
+                ));
+                let d = decompose(map, &templates, &mut rng).map_err(|source| {
+                    TrainModelError::Decompose {
+                        map: map.name.clone(),
+                        source,
+                    }
+                })?;
+                for comp in d.components.iter().filter(|c| c.template == 0) {
+                    let sample: Option<Vec<ClassId>> =
+                        comp.places.iter().map(|&p| map.place(p).class).collect();
+                    if let Some(sample) = sample {
+                        if settings.add_reversed && sample.len() > 1 {
+                            out.push(sample.iter().rev().copied().collect());
+                        }
+                        out.push(sample);
+                    }
+                }
+            }
+            Ok(out)
+        })
+        .collect();
+    let mut samples = Vec::new();
+    for r in per_map {
+        samples.extend(r?);
+    }
+    Ok(samples)
+}
+
+/// Learns a [`Model`] from annotated maps (the paper's "Learning GraphSPNs"):
+/// one template SPN per template, trained on the components of the maps'
+/// decompositions (see [`template_samples`]). Templates are kept in the order
+/// given (largest first is what decompositions expect). Deterministic for a given
+/// `settings.seed`.
+pub fn train_model(
+    maps: &[TopoMap],
+    templates: &[Template],
+    settings: &TrainingSettings,
+    progress: Progress,
+) -> Result<(Model, Vec<TemplateTraining>), TrainModelError> {
+    let first = maps.first().ok_or(TrainModelError::NoMaps)?;
+    if templates.is_empty() {
+        return Err(TrainModelError::NoTemplates);
+    }
+    for m in maps {
+        if m.classes != first.classes {
+            return Err(TrainModelError::ClassMismatch {
+                map: m.name.clone(),
+                found: m.classes.names().to_vec(),
+                first: first.name.clone(),
+                expected: first.classes.names().to_vec(),
+            });
+        }
+    }
+    let num_classes = first.classes.len() as u32;
+    let mut spns = Vec::with_capacity(templates.len());
+    let mut trainings = Vec::with_capacity(templates.len());
+    for (t, template) in templates.iter().enumerate() {
+        let samples = if template.num_nodes == 1 {
+            Vec::new()
+        } else {
+            template_samples(maps, template, t, settings)?
+        };
+        if template.num_nodes > 1 && samples.is_empty() {
+            return Err(TrainModelError::NoSamples(template.name.clone()));
+        }
+        let seed = derive_seed(settings.seed, t as u64, u64::MAX, 0);
+        let (spn, report) = learn_template_spn(
+            template.num_nodes,
+            num_classes,
+            &template.automorphisms(),
+            &samples,
+            settings,
+            seed,
+            progress,
+        )
+        .map_err(|source| TrainModelError::Learn {
+            template: template.name.clone(),
+            source,
+        })?;
+        spns.push(spn);
+        trainings.push(TemplateTraining {
+            template: template.name.clone(),
+            samples: samples.len(),
+            report,
+        });
+    }
+    let model = Model {
+        format: MODEL_FORMAT,
+        classes: first.classes.clone(),
+        templates: templates.to_vec(),
+        spns,
+        settings: settings.to_value(),
+        trained_on: maps.iter().map(|m| m.name.clone()).collect(),
+    };
+    Ok((model, trainings))
+}

@@ -1,0 +1,4 @@
+//! Sub-commands of the `graphspn` tool that have grown beyond a few lines, one file each.
+
+pub mod common;
+pub mod train;
