@@ -31,8 +31,11 @@ const TRAIN: [&str; 3] = [
     "Saarbrucken/seq3_cloudy1",
 ];
 
-fn trained() -> Option<&'static (Model, Vec<TemplateTraining>, Vec<TopoMap>)> {
-    static MODEL: OnceLock<Option<(Model, Vec<TemplateTraining>, Vec<TopoMap>)>> = OnceLock::new();
+/// The model, its per-template training reports and the training maps.
+type Trained = (Model, Vec<TemplateTraining>, Vec<TopoMap>);
+
+fn trained() -> Option<&'static Trained> {
+    static MODEL: OnceLock<Option<Trained>> = OnceLock::new();
     MODEL
         .get_or_init(|| {
             let d = data()?;
@@ -89,7 +92,9 @@ fn certain_rows(map: &TopoMap) -> Vec<Vec<f64>> {
     let c = map.classes.len();
     map.places()
         .map(|p| match p.class {
-            Some(k) => (0..c).map(|j| f64::from(u8::from(j == k as usize))).collect(),
+            Some(k) => (0..c)
+                .map(|j| f64::from(u8::from(j == k as usize)))
+                .collect(),
             None => vec![1.0 / c as f64; c],
         })
         .collect()
@@ -101,7 +106,9 @@ fn certain_evidence_gives_the_truth() {
         eprintln!("GRAPHSPN_DATA unset: skipped");
         return;
     };
-    let m = im.marginals(&Evidence::from_rows(certain_rows(&map))).unwrap();
+    let m = im
+        .marginals(&Evidence::from_rows(certain_rows(&map)))
+        .unwrap();
     let mut checked = 0;
     for (i, p) in map.places().enumerate() {
         if let Some(k) = p.class {
@@ -180,10 +187,17 @@ fn a_place_without_evidence_follows_its_neighbours() {
         eprintln!("corridor place {}: {q:?}", map.place(i).id);
         assert!(q[cr] + q[dw] > 0.5, "place {}: {q:?}", map.place(i).id);
     }
-    for (i, k) in others.into_iter().chain(in_corridor.iter().map(|&i| (i, cr))) {
+    for (i, k) in others
+        .into_iter()
+        .chain(in_corridor.iter().map(|&i| (i, cr)))
+    {
         let q = query(&mut im, i);
         let max = q.iter().cloned().fold(0.0, f64::max);
-        assert!(max > 1.0 / c as f64 + 0.2, "place {}: near-uniform {q:?}", map.place(i).id);
+        assert!(
+            max > 1.0 / c as f64 + 0.2,
+            "place {}: near-uniform {q:?}",
+            map.place(i).id
+        );
         let arg = q.iter().position(|&x| x == max).unwrap();
         // The argmax is among the 2 classes most often seen next to class k in training.
         let mut ranked: Vec<usize> = (0..c).collect();

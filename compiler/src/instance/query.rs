@@ -133,7 +133,10 @@ impl InstanceModel {
             )));
         }
         let c = self.instance.num_classes();
-        if let Some(p) = labels.iter().position(|l| l.is_some_and(|l| l as usize >= c)) {
+        if let Some(p) = labels
+            .iter()
+            .position(|l| l.is_some_and(|l| l as usize >= c))
+        {
             return Err(InstanceQueryError::BadLabels(format!(
                 "place index {p}: class {} out of range ({c} classes)",
                 labels[p].unwrap_or_default()
