@@ -82,7 +82,10 @@ fn marginals_and_likelihood_match_enumeration() {
             .iter()
             .map(|y| decs.iter().map(|d| term(&model, d, y)).sum::<f64>() / decs.len() as f64)
             .sum();
-        assert!((prior - 1.0).abs() < 1e-9, "seed {seed}: prior sums to {prior}");
+        assert!(
+            (prior - 1.0).abs() < 1e-9,
+            "seed {seed}: prior sums to {prior}"
+        );
 
         let m = im.marginals(&ev).unwrap();
         assert!(
@@ -116,7 +119,12 @@ fn marginals_and_likelihood_match_enumeration() {
             let brute: f64 = ys
                 .iter()
                 .zip(&joint)
-                .filter(|(y, _)| labels.iter().zip(y.iter()).all(|(l, &v)| l.is_none_or(|l| l == v)))
+                .filter(|(y, _)| {
+                    labels
+                        .iter()
+                        .zip(y.iter())
+                        .all(|(l, &v)| l.is_none_or(|l| l == v))
+                })
                 .map(|(_, j)| j)
                 .sum();
             let ll = im.log_likelihood_labelled(&labels, &ev).unwrap();
@@ -159,8 +167,8 @@ fn mpe_matches_enumeration_for_selective_templates() {
             best.ln()
         );
         let y: Vec<ClassId> = mpe.assignment.iter().map(|&k| k as ClassId).collect();
-        let joint_y = decs.iter().map(|d| term(&model, d, &y)).sum::<f64>() / dn
-            * evidence_weight(&rows, &y);
+        let joint_y =
+            decs.iter().map(|d| term(&model, d, &y)).sum::<f64>() / dn * evidence_weight(&rows, &y);
         assert!(
             (mpe.log_probability - joint_y.ln()).abs() < 1e-9,
             "seed {seed}: ln P(mpe) {} vs brute force {}",
@@ -197,7 +205,10 @@ fn mpe_matches_enumeration_for_selective_templates() {
                 best_c = best_c.max(term(&model, d, y) / dn * evidence_weight(&rows, y));
             }
         }
-        assert!((clamped.log_max_product - best_c.ln()).abs() < 1e-9, "seed {seed}");
+        assert!(
+            (clamped.log_max_product - best_c.ln()).abs() < 1e-9,
+            "seed {seed}"
+        );
     }
 }
 
