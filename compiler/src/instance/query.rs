@@ -96,7 +96,7 @@ impl InstanceModel {
     }
 
     /// `ln P(Y_p = labels[p] for every labelled p, evidence)`: unlabelled places
-    /// (`None`) are summed out. With uniform evidence `1/C` per place this is the
+    /// (`None`; an empty slice = none labelled) are summed out. With uniform evidence `1/C` per place this is the
     /// model's log-probability of the partial labelling plus `n·ln(1/C)` (the evidence
     /// rows multiply the leaves); pass rows of ones to get the pure model probability.
     pub fn log_likelihood_labelled(
@@ -109,7 +109,7 @@ impl InstanceModel {
     }
 
     /// Max-product (MPE) labelling of every place given the evidence, with places in
-    /// `labels` clamped. The instance mixes decompositions, so it is not selective:
+    /// `labels` clamped (an empty slice clamps none). The instance mixes decompositions, so it is not selective:
     /// the answer is the best (decomposition, labelling) pair's labelling; see
     /// [`Mpe`] for the bounds this gives.
     pub fn mpe(
