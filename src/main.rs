@@ -1,6 +1,6 @@
 //! The `graphspn` command-line tool.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 mod cli;
 
@@ -58,6 +58,11 @@ enum Command {
     },
     /// Learn a model (one template SPN per sub-graph template) from annotated COLD maps.
     Train(cli::train::TrainArgs),
+    /// Posterior class marginals (or the MPE labelling) of every place of a map
+    /// given per-place evidence, through the instance GraphSPN.
+    Infer(cli::infer::InferArgs),
+    /// Export the instance GraphSPN of a map as JSON (every node) or Graphviz dot.
+    Instance(cli::instance::InstanceArgs),
     /// Generate a synthetic office floor and save it as a JSON map.
     Generate {
         /// Number of places (10..=100000).
@@ -79,26 +84,6 @@ fn data_dir(arg: Option<PathBuf>) -> Option<PathBuf> {
 fn synthetic(places: usize, seed: u64) -> Result<TopoMap> {
     generate(&SyntheticParams::new(places, seed))
         .with_context(|| format!("generating a synthetic floor of {places} places (seed {seed})"))
-}
-
-fn load_map(path: &Path, data: Option<PathBuf>) -> Result<TopoMap> {
-    let resolved = if path.exists() {
-        path.to_path_buf()
-    } else if let Some(d) = data.filter(|_| path.is_relative()) {
-        d.join(path)
-    } else {
-        path.to_path_buf()
-    };
-    if resolved.is_dir() {
-        Ok(cold::load_sequence(&resolved)?)
-    } else if resolved.exists() {
-        Ok(TopoMap::load(&resolved)?)
-    } else {
-        bail!(
-            "{}: no such map (give a COLD sequence folder, a JSON map, or a sequence name under --data / $GRAPHSPN_DATA)",
-            path.display()
-        )
-    }
 }
 
 fn main() -> Result<()> {
@@ -148,7 +133,7 @@ fn main() -> Result<()> {
             out,
         } => {
             let m = match (map, syn) {
-                (Some(p), _) => load_map(&p, data_dir(data))?,
+                (Some(p), _) => cli::common::load_map(&p, data_dir(data))?,
                 (None, Some(n)) => synthetic(n, seed)?,
                 (None, None) => bail!("give --map PATH or --synthetic N"),
             };
@@ -168,6 +153,8 @@ fn main() -> Result<()> {
             eprintln!("wrote {} ({} places)", out.display(), m.num_places());
         }
         Command::Train(args) => cli::train::run(args)?,
+        Command::Infer(args) => cli::infer::run(args)?,
+        Command::Instance(args) => cli::instance::run(args)?,
         Command::Generate { places, seed, out } => {
             let m = synthetic(places, seed)?;
             m.save(&out)?;

@@ -1,6 +1,6 @@
 //! Helpers shared by several sub-commands.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use graphspn_compiler::map::{TopoMap, cold};
@@ -34,4 +34,61 @@ pub fn load_buildings(data: &std::path::Path, buildings: &[String]) -> Result<Ve
         );
     }
     Ok(maps)
+}
+
+/// A map: a COLD sequence folder (nodes.dat + rooms.dat), a JSON map file, or a
+/// sequence name such as `Freiburg/seq1_cloudy1` under the data folder.
+pub fn load_map(path: &Path, data: Option<PathBuf>) -> Result<TopoMap> {
+    let resolved = if path.exists() {
+        path.to_path_buf()
+    } else if let Some(d) = data.filter(|_| path.is_relative()) {
+        d.join(path)
+    } else {
+        path.to_path_buf()
+    };
+    if resolved.is_dir() {
+        Ok(cold::load_sequence(&resolved)
+            .with_context(|| format!("loading COLD sequence {}", resolved.display()))?)
+    } else if resolved.exists() {
+        Ok(TopoMap::load(&resolved)
+            .with_context(|| format!("loading JSON map {}", resolved.display()))?)
+    } else {
+        bail!(
+            "{}: no such map (give a COLD sequence folder, a JSON map, or a sequence name under --data / $GRAPHSPN_DATA)",
+            path.display()
+        )
+    }
+}
+
+/// Loads a model and builds the instance GraphSPN of `map` with `decompositions`
+/// decompositions (best of 3×, at least 15 candidates) seeded by `seed`.
+pub fn instance_for(
+    model_path: &Path,
+    map: &TopoMap,
+    decompositions: usize,
+    seed: u64,
+) -> Result<(
+    graphspn_compiler::learn::Model,
+    graphspn_compiler::instance::Instance,
+)> {
+    use graphspn_compiler::instance::{Instance, InstanceParams};
+    let model = graphspn_compiler::learn::Model::load(model_path)
+        .with_context(|| format!("loading model {}", model_path.display()))?;
+    let params = InstanceParams {
+        decompositions,
+        candidates: (3 * decompositions).max(15),
+        seed,
+    };
+    let inst = Instance::for_map(&model, map, &params)
+        .with_context(|| format!("building the instance of map {:?}", map.name))?;
+    Ok((model, inst))
+}
+
+/// Writes `text` to standard output; a closed pipe (e.g. `| head`) is not an error.
+pub fn write_stdout(text: &str) -> Result<()> {
+    use std::io::Write;
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => Ok(r.context("writing to standard output")?),
+    }
 }

@@ -1,4 +1,6 @@
 //! Sub-commands of the `graphspn` tool that have grown beyond a few lines, one file each.
 
 pub mod common;
+pub mod infer;
+pub mod instance;
 pub mod train;

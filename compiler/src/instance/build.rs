@@ -1,6 +1,6 @@
 //! Construction and incremental growth of an instance GraphSPN.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use thiserror::Error;
 
@@ -137,6 +137,20 @@ pub struct Instance {
     copies: BTreeMap<Component, NodeId>,
     /// Number of classes.
     num_classes: usize,
+    /// Edges (place indices, smaller first) of the map the instance was last built for,
+    /// so [`Instance::grow`] can tell which edges are new.
+    pub(super) edges: BTreeSet<(usize, usize)>,
+    /// Copies reused and built by the last [`Instance::build`] / [`Instance::update`].
+    last_stats: CopyStats,
+}
+
+/// How many template copies an assembly reused from before and how many it built.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CopyStats {
+    /// Distinct components whose copy already existed and was kept as is.
+    pub reused: usize,
+    /// Distinct components whose copy was newly instantiated.
+    pub built: usize,
 }
 
 impl Instance {
@@ -158,6 +172,8 @@ impl Instance {
             leaves: Vec::new(),
             copies: BTreeMap::new(),
             num_classes,
+            edges: edge_set(map),
+            last_stats: CopyStats::default(),
         };
         instance.add_leaves(map.num_places());
         instance.assemble(model, decompositions);
@@ -178,10 +194,9 @@ impl Instance {
         check_inputs(model, map, &decompositions)?;
         let old_places = self.leaves.len();
         if map.num_places() < old_places {
-            return Err(InstanceError::NotAPartition {
-                decomposition: 0,
-                place_id: 0,
-                times: 0,
+            return Err(InstanceError::MapShrank {
+                before: old_places,
+                after: map.num_places(),
             });
         }
         self.spn.classes = vec![self.num_classes as u32; map.num_places()];
@@ -194,7 +209,24 @@ impl Instance {
         self.copies.retain(|c, _| keep.contains(c));
         self.compact();
         self.assemble(model, decompositions);
+        self.edges = edge_set(map);
         Ok(())
+    }
+
+    /// Copies reused and built by the last [`Instance::build`] / [`Instance::update`]
+    /// (a build reuses nothing; counts are of distinct components).
+    pub fn last_copy_stats(&self) -> CopyStats {
+        self.last_stats
+    }
+
+    /// Number of places (SPN variables) of the instance.
+    pub fn num_places(&self) -> usize {
+        self.leaves.len()
+    }
+
+    /// Number of classes per place.
+    pub fn num_classes(&self) -> usize {
+        self.num_classes
     }
 
     /// Number of template copies (distinct components) in the instance.
@@ -224,12 +256,21 @@ impl Instance {
     /// Instantiates missing component copies, then the decomposition products and the root.
     fn assemble(&mut self, model: &Model, decompositions: Vec<Decomposition>) {
         let mut products = Vec::with_capacity(decompositions.len());
+        let mut stats = CopyStats::default();
+        let mut seen: BTreeSet<&Component> = BTreeSet::new();
         for d in &decompositions {
             let mut children = Vec::with_capacity(d.components.len());
             for comp in &d.components {
+                let first_use = seen.insert(comp);
                 let root = match self.copies.get(comp) {
-                    Some(&r) => r,
+                    Some(&r) => {
+                        if first_use {
+                            stats.reused += 1;
+                        }
+                        r
+                    }
                     None => {
+                        stats.built += 1;
                         let r = self.instantiate(&model.spns[comp.template], &comp.places);
                         self.copies.insert(comp.clone(), r);
                         r
@@ -246,6 +287,7 @@ impl Instance {
             weights,
         });
         self.decompositions = decompositions;
+        self.last_stats = stats;
     }
 
     /// Copies a template SPN with its leaves bound to `places`; returns the copy's root.
@@ -325,6 +367,14 @@ impl Instance {
             *r = new_id[*r as usize];
         }
     }
+}
+
+/// The edges of `map` as sorted (smaller, larger) place-index pairs.
+pub(super) fn edge_set(map: &TopoMap) -> BTreeSet<(usize, usize)> {
+    map.edge_list()
+        .into_iter()
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect()
 }
 
 fn check_inputs(

@@ -12,7 +12,20 @@
 //! decompositions are built once and shared, which keeps the DAG valid (scopes
 //! are unchanged) and the instance smaller.
 
+//!
+//! - [`Instance::build`] / [`Instance::for_map`]: assembly from given decompositions or
+//!   from [`crate::decompose::decompose_best`];
+//! - [`InstanceModel`]: marginals, log-likelihood of a partial labelling and MPE per
+//!   place through the exact interpreter;
+//! - [`Instance::update`] / [`Instance::grow`] / [`grow_decompositions`]: incremental
+//!   updates when the map grows, keeping untouched template copies;
+//! - [`Instance::to_json`] / [`Instance::to_dot`]: export.
+
 mod build;
 mod export;
+mod grow;
+mod query;
 
-pub use build::{Instance, InstanceError, InstanceParams};
+pub use build::{CopyStats, Instance, InstanceError, InstanceParams};
+pub use grow::grow_decompositions;
+pub use query::{InstanceModel, InstanceQueryError};

@@ -1,0 +1,115 @@
+//! A first accuracy figure: train on two COLD buildings, then for 5 maps of the third
+//! simulate noisy evidence at each paper noise level (seeded) and compare the accuracy
+//! of the argmax of the instance GraphSPN's marginals with the argmax of the evidence
+//! alone.
+//!
+//! `GRAPHSPN_DATA=... cargo run --release --example accuracy [-- TEST_BUILDING [SEED]]`
+//! (default test building Stockholm, seed 0).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use graphspn_compiler::experiments::evidence::{NoiseLevel, map_truth, simulate_map_evidence};
+use graphspn_compiler::instance::{Instance, InstanceModel, InstanceParams};
+use graphspn_compiler::interpreter::Evidence;
+use graphspn_compiler::learn::{Progress, TrainingSettings, train_model};
+use graphspn_compiler::map::cold;
+use graphspn_compiler::template::Template;
+
+fn argmax(row: &[f64]) -> usize {
+    let mut best = 0;
+    for (k, &p) in row.iter().enumerate() {
+        if p > row[best] {
+            best = k;
+        }
+    }
+    best
+}
+
+fn main() -> Result<()> {
+    let data = PathBuf::from(
+        std::env::var_os("GRAPHSPN_DATA")
+            .context("set GRAPHSPN_DATA to the COLD topomaps folder")?,
+    );
+    let mut args = std::env::args().skip(1);
+    let test_building = args.next().unwrap_or_else(|| "Stockholm".into());
+    let seed: u64 = match args.next() {
+        Some(s) => s.parse().with_context(|| format!("seed {s:?}"))?,
+        None => 0,
+    };
+    if !cold::BUILDINGS.contains(&test_building.as_str()) {
+        bail!("unknown building {test_building:?}");
+    }
+    let mut train = Vec::new();
+    for b in cold::BUILDINGS.iter().filter(|&&b| b != test_building) {
+        train.extend(cold::load_building(&data, b).with_context(|| format!("loading {b}"))?);
+    }
+    let start = Instant::now();
+    let settings = TrainingSettings {
+        seed,
+        ..TrainingSettings::default()
+    };
+    let (model, _) = train_model(&train, &Template::paper_set(), &settings, Progress::Hidden)?;
+    println!(
+        "trained on {} maps in {:.2} s; testing on 5 {test_building} maps (seed {seed})",
+        train.len(),
+        start.elapsed().as_secs_f64()
+    );
+    let test: Vec<_> = cold::load_building(&data, &test_building)?
+        .into_iter()
+        .take(5)
+        .collect();
+    let mut instances = Vec::new();
+    for (i, map) in test.iter().enumerate() {
+        let params = InstanceParams {
+            seed: seed.wrapping_add(i as u64),
+            ..InstanceParams::default()
+        };
+        let inst = Instance::for_map(&model, map, &params)?;
+        println!(
+            "  {}: {} places, instance {} nodes / {} edges",
+            map.name,
+            map.num_places(),
+            inst.spn.nodes.len(),
+            inst.spn.num_edges()
+        );
+        instances.push(InstanceModel::new(inst)?);
+    }
+    println!("level  graphspn%  evidence%   per map (graphspn/evidence)");
+    for level in NoiseLevel::all() {
+        let mut per_map = Vec::new();
+        for (i, (map, im)) in test.iter().zip(&mut instances).enumerate() {
+            let truth = map_truth(map)?;
+            let ev = simulate_map_evidence(
+                map,
+                level,
+                false,
+                seed ^ (i as u64 * 7919 + level.get() as u64),
+            )?;
+            let m = im.marginals(&Evidence::from_rows(ev.rows.clone()))?;
+            let n = truth.len() as f64;
+            let hits = |rows: &[Vec<f64>]| {
+                rows.iter()
+                    .zip(&truth)
+                    .filter(|(r, t)| argmax(r) == **t as usize)
+                    .count() as f64
+                    / n
+            };
+            per_map.push((hits(&m.probs), hits(&ev.rows)));
+        }
+        let k = per_map.len() as f64;
+        let g = per_map.iter().map(|x| x.0).sum::<f64>() / k * 100.0;
+        let e = per_map.iter().map(|x| x.1).sum::<f64>() / k * 100.0;
+        let detail: Vec<String> = per_map
+            .iter()
+            .map(|(a, b)| format!("{:.1}/{:.1}", a * 100.0, b * 100.0))
+            .collect();
+        println!(
+            "NL{}    {g:8.1}  {e:9.1}   {}",
+            level.get(),
+            detail.join("  ")
+        );
+    }
+    Ok(())
+}
