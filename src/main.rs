@@ -58,6 +58,9 @@ enum Command {
     },
     /// Learn a model (one template SPN per sub-graph template) from annotated COLD maps.
     Train(cli::train::TrainArgs),
+    /// Run the paper's experiments (classification, placeholders, novelty) and
+    /// write REPORT.md, results.json and SVG figures.
+    Reproduce(cli::reproduce::ReproduceArgs),
     /// Generate a synthetic office floor and save it as a JSON map.
     Generate {
         /// Number of places (10..=100000).
@@ -168,6 +171,7 @@ fn main() -> Result<()> {
             eprintln!("wrote {} ({} places)", out.display(), m.num_places());
         }
         Command::Train(args) => cli::train::run(args)?,
+        Command::Reproduce(args) => cli::reproduce::run_cmd(args)?,
         Command::Generate { places, seed, out } => {
             let m = synthetic(places, seed)?;
             m.save(&out)?;
