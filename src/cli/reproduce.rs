@@ -3,12 +3,14 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use graphspn_compiler::decompose::DecompositionParams;
-use graphspn_compiler::experiments::evidence::WrongClassDraw;
+use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
 use graphspn_compiler::experiments::report::write_outputs;
 use graphspn_compiler::experiments::reproduce::{ReproduceConfig, load_data, run};
+use graphspn_compiler::learn::TrainingSettings;
+use graphspn_compiler::mrf::Normalisation;
 
 use super::common::require_data_dir;
 
@@ -37,9 +39,34 @@ pub struct ReproduceArgs {
     /// Candidate decompositions scored (default 15, or 3 × decompositions if larger).
     #[arg(long)]
     candidates: Option<usize>,
-    /// Test buildings, comma-separated (default: all three).
+    /// Test buildings, comma-separated (default: all three, minus --exclude).
     #[arg(long, value_delimiter = ',')]
     buildings: Option<Vec<String>>,
+    /// Leave this building out entirely (validation on training buildings only:
+    /// each remaining building is tested with a model trained on the other).
+    #[arg(long)]
+    exclude: Option<String>,
+    /// Noise levels to run, comma-separated (default: 1..6).
+    #[arg(long, value_delimiter = ',')]
+    levels: Option<Vec<u8>>,
+    /// Test maps per building.
+    #[arg(long)]
+    maps: Option<usize>,
+    /// Evidence rounds per map and level.
+    #[arg(long)]
+    rounds: Option<usize>,
+    /// Skip the novelty-detection experiment.
+    #[arg(long)]
+    no_novelty: bool,
+    /// GraphSPN evidence exponent (calibration; default 1).
+    #[arg(long)]
+    evidence_exponent: Option<f64>,
+    /// Training settings as JSON merged over the defaults, e.g. '{"em":"soft"}'.
+    #[arg(long)]
+    training: Option<String>,
+    /// MRF potentials from PMI ratios instead of joint frequencies.
+    #[arg(long)]
+    mrf_pmi: bool,
 }
 
 /// Runs `graphspn reproduce`.
@@ -63,11 +90,48 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     } else if let Some(c) = args.candidates {
         cfg.decomposition.candidates = c;
     }
+    let start = Instant::now();
+    let mut all = load_data(&data)?;
+    if let Some(x) = &args.exclude {
+        if all.remove(x).is_none() {
+            anyhow::bail!("--exclude {x}: no such building");
+        }
+        cfg.test_buildings.retain(|b| b != x);
+    }
     if let Some(b) = args.buildings {
         cfg.test_buildings = b;
     }
-    let start = Instant::now();
-    let all = load_data(&data)?;
+    if let Some(l) = args.levels {
+        cfg.levels = l
+            .into_iter()
+            .map(NoiseLevel::new)
+            .collect::<Result<_, _>>()?;
+    }
+    if let Some(m) = args.maps {
+        cfg.maps_per_building = m;
+    }
+    if let Some(r) = args.rounds {
+        cfg.rounds = r;
+    }
+    if args.no_novelty {
+        cfg.novelty = false;
+    }
+    if let Some(e) = args.evidence_exponent {
+        cfg.evidence_exponent = e;
+    }
+    if let Some(t) = &args.training {
+        let mut v = cfg.training.to_value();
+        let patch: serde_json::Value = serde_json::from_str(t).context("--training JSON")?;
+        if let (Some(obj), Some(p)) = (v.as_object_mut(), patch.as_object()) {
+            for (k, x) in p {
+                obj.insert(k.clone(), x.clone());
+            }
+        }
+        cfg.training = TrainingSettings::from_value(&v).context("--training settings")?;
+    }
+    if args.mrf_pmi {
+        cfg.cooccurrence.normalisation = Normalisation::Pmi;
+    }
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
     write_outputs(&rep, &setups, &cfg, &args.out, "")?;

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::evidence::{NoiseLevel, PAPER_TABLE1};
 use super::reproduce::{
-    BuildingSetup, Experiment, MODELS, Reproduction, ReproduceConfig, ReproduceError, roc_curve,
+    BuildingSetup, Experiment, MODELS, ReproduceConfig, ReproduceError, Reproduction, roc_curve,
     run_graph,
 };
 use crate::map::TopoMap;
@@ -228,9 +228,16 @@ fn report_markdown(
         },
         rep.seconds
     );
-    let _ = writeln!(s, "Training settings: `{}`\n", rep.training);
+    let _ = writeln!(
+        s,
+        "Training settings: `{}`; GraphSPN evidence exponent {}.\n",
+        rep.training, cfg.evidence_exponent
+    );
     let _ = writeln!(s, "## Test maps\n");
-    let _ = writeln!(s, "| Test building | Trained on | Test maps | GraphSPN training (s) |\n|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| Test building | Trained on | Test maps | GraphSPN training (s) |\n|---|---|---|---|"
+    );
     for b in &rep.buildings {
         let _ = writeln!(
             s,
@@ -616,7 +623,11 @@ fn wrong_places(o: &super::reproduce::GraphOutcome) -> Vec<usize> {
         .collect()
 }
 
-fn fig8_panel(setup: &BuildingSetup, o: &super::reproduce::GraphOutcome, level: NoiseLevel) -> String {
+fn fig8_panel(
+    setup: &BuildingSetup,
+    o: &super::reproduce::GraphOutcome,
+    level: NoiseLevel,
+) -> String {
     let map = &setup.maps[0];
     let wrong = wrong_places(o);
     let templates = Template::paper_set();
@@ -632,9 +643,7 @@ fn fig8_panel(setup: &BuildingSetup, o: &super::reproduce::GraphOutcome, level: 
         render_svg(
             map,
             &RenderOptions {
-                title: Some(format!(
-                    "{level}: wrong evidence (black), decomposition 1"
-                )),
+                title: Some(format!("{level}: wrong evidence (black), decomposition 1")),
                 decomposition: setup.instances[0].0.first(),
                 templates: Some(&templates),
                 highlight: &wrong,

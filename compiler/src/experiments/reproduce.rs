@@ -132,6 +132,10 @@ pub struct ReproduceConfig {
     pub wrong_draw: WrongClassDraw,
     /// Run the novelty-detection experiment.
     pub novelty: bool,
+    /// GraphSPN only: each evidence row is raised to this power (then
+    /// renormalised) before inference; 1 = the evidence as simulated. A
+    /// calibration knob, to be chosen on training buildings only.
+    pub evidence_exponent: f64,
     /// Progress bars.
     pub progress: Progress,
 }
@@ -151,6 +155,7 @@ impl ReproduceConfig {
             bp: BpOptions::default(),
             wrong_draw: WrongClassDraw::Others,
             novelty: true,
+            evidence_exponent: 1.0,
             progress: Progress::Auto,
         }
     }
@@ -249,6 +254,8 @@ pub struct Reproduction {
     pub decompositions: (usize, usize),
     /// Training settings used (JSON).
     pub training: serde_json::Value,
+    /// GraphSPN evidence exponent used (1 = none).
+    pub evidence_exponent: f64,
     /// Per building.
     pub buildings: Vec<BuildingInfo>,
     /// Per test graph.
@@ -334,11 +341,16 @@ pub fn setup_building(
         ..cfg.training.clone()
     };
     let t0 = std::time::Instant::now();
-    let (model, _) = train_model(&train_maps, &Template::paper_set(), &settings, Progress::Hidden)
-        .map_err(|source| ReproduceError::Train {
-            building: test_building.into(),
-            source,
-        })?;
+    let (model, _) = train_model(
+        &train_maps,
+        &Template::paper_set(),
+        &settings,
+        Progress::Hidden,
+    )
+    .map_err(|source| ReproduceError::Train {
+        building: test_building.into(),
+        source,
+    })?;
     let train_seconds = t0.elapsed().as_secs_f64();
     let mrf = |source| ReproduceError::Mrf {
         what: format!("training for {test_building}"),
@@ -385,12 +397,11 @@ fn build_instance(
             source,
         }
     })?;
-    let inst = Instance::build(model, map, decs.clone()).map_err(|source| {
-        ReproduceError::Instance {
+    let inst =
+        Instance::build(model, map, decs.clone()).map_err(|source| ReproduceError::Instance {
             map: map.name.clone(),
             source,
-        }
-    })?;
+        })?;
     let ev = Evaluator::new(&inst.spn).map_err(|e| ReproduceError::Config(e.to_string()))?;
     Ok((decs, ev))
 }
@@ -450,16 +461,28 @@ pub fn run_graph(
         map: map.name.clone(),
         source,
     };
-    let ev = simulate_map_evidence_with(map, level, placeholders, seed, cfg.wrong_draw)
-        .map_err(evi)?;
+    let ev =
+        simulate_map_evidence_with(map, level, placeholders, seed, cfg.wrong_draw).map_err(evi)?;
     let truth = map_truth(map).map_err(evi)?;
     let scored: Vec<usize> = (0..map.num_places())
         .filter(|&i| !placeholders || map.place(i).placeholder)
         .collect();
     let mut evaluator = setup.instances[m].1.clone();
     let fixed = vec![None; map.num_places()];
+    let rows = if cfg.evidence_exponent == 1.0 {
+        ev.rows.clone()
+    } else {
+        ev.rows
+            .iter()
+            .map(|r| {
+                let p: Vec<f64> = r.iter().map(|x| x.powf(cfg.evidence_exponent)).collect();
+                let s: f64 = p.iter().sum();
+                p.into_iter().map(|x| x / s).collect()
+            })
+            .collect()
+    };
     let g = evaluator
-        .marginals(&fixed, &Evidence::from_rows(ev.rows.clone()))
+        .marginals(&fixed, &Evidence::from_rows(rows))
         .map_err(|source| ReproduceError::Inference {
             map: map.name.clone(),
             source,
@@ -632,6 +655,12 @@ pub fn run(
     all: &BTreeMap<String, Vec<TopoMap>>,
     cfg: &ReproduceConfig,
 ) -> Result<(Reproduction, Vec<BuildingSetup>), ReproduceError> {
+    if !(cfg.evidence_exponent.is_finite() && cfg.evidence_exponent > 0.0) {
+        return Err(ReproduceError::Config(format!(
+            "evidence exponent must be finite and > 0, got {}",
+            cfg.evidence_exponent
+        )));
+    }
     if cfg.levels.is_empty() || cfg.rounds == 0 {
         return Err(ReproduceError::Config(
             "need at least one level and one round".into(),
@@ -723,6 +752,7 @@ pub fn run(
         paper_noise: cfg.wrong_draw == WrongClassDraw::AnyClass,
         decompositions: (cfg.decomposition.count, cfg.decomposition.candidates),
         training: cfg.training.to_value(),
+        evidence_exponent: cfg.evidence_exponent,
         buildings: setups.iter().map(|s| s.info.clone()).collect(),
         graphs,
         novelty,
