@@ -516,8 +516,11 @@ pub fn run_graph(
     })
 }
 
+/// A novelty-experiment labelling: `(name, novel, classes swapped)`.
+pub type NoveltyVariant = (&'static str, bool, Option<(&'static str, &'static str)>);
+
 /// The labelling variants of the novelty experiment: `(name, novel, swap)`.
-pub const NOVELTY_VARIANTS: [(&str, bool, Option<(&str, &str)>); 4] = [
+pub const NOVELTY_VARIANTS: [NoveltyVariant; 4] = [
     ("original", false, None),
     ("1PO<->2PO", false, Some(("1PO", "2PO"))),
     ("CR<->DW", true, Some(("CR", "DW"))),
