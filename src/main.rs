@@ -63,6 +63,9 @@ enum Command {
     Infer(cli::infer::InferArgs),
     /// Export the instance GraphSPN of a map as JSON (every node) or Graphviz dot.
     Instance(cli::instance::InstanceArgs),
+    /// Run the paper's experiments (classification, placeholders, novelty) and
+    /// write REPORT.md, results.json and SVG figures.
+    Reproduce(cli::reproduce::ReproduceArgs),
     /// Generate a synthetic office floor and save it as a JSON map.
     Generate {
         /// Number of places (10..=100000).
@@ -155,6 +158,7 @@ fn main() -> Result<()> {
         Command::Train(args) => cli::train::run(args)?,
         Command::Infer(args) => cli::infer::run(args)?,
         Command::Instance(args) => cli::instance::run(args)?,
+        Command::Reproduce(args) => cli::reproduce::run_cmd(args)?,
         Command::Generate { places, seed, out } => {
             let m = synthetic(places, seed)?;
             m.save(&out)?;

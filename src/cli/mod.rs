@@ -3,4 +3,5 @@
 pub mod common;
 pub mod infer;
 pub mod instance;
+pub mod reproduce;
 pub mod train;

@@ -227,6 +227,19 @@ pub struct SimulatedEvidence {
     pub no_evidence: Vec<bool>,
 }
 
+/// From which classes the boosted class of a *wrong* place is drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum WrongClassDraw {
+    /// Uniformly among the `C − 1` classes other than the truth (the protocol as written).
+    #[default]
+    Others,
+    /// Uniformly among all `C` classes, so about 1 in `C` "wrong" places gets its
+    /// true class boosted and is in fact right. This reproduces the paper's
+    /// Table 1 `D_incorrect` statistics (see the module docs): the paper's
+    /// effective noise. Such places are reported with `wrong[i] = false`.
+    AnyClass,
+}
+
 /// Simulates evidence for places with ground truth `truth` over `num_classes`
 /// classes (≥ 2). Places with `no_evidence[i]` get a uniform row and are not
 /// counted among the evidence-bearing places (pass all `false` to give every
@@ -237,6 +250,25 @@ pub fn simulate_evidence(
     no_evidence: &[bool],
     params: &NoiseParams,
     seed: u64,
+) -> Result<SimulatedEvidence, EvidenceSimError> {
+    simulate_evidence_with(
+        truth,
+        num_classes,
+        no_evidence,
+        params,
+        seed,
+        WrongClassDraw::Others,
+    )
+}
+
+/// [`simulate_evidence`] with a choice of how the wrong class is drawn.
+pub fn simulate_evidence_with(
+    truth: &[ClassId],
+    num_classes: usize,
+    no_evidence: &[bool],
+    params: &NoiseParams,
+    seed: u64,
+    draw: WrongClassDraw,
 ) -> Result<SimulatedEvidence, EvidenceSimError> {
     params.validate()?;
     let c = num_classes;
@@ -287,11 +319,21 @@ pub fn simulate_evidence(
             match params.wrong {
                 WrongEvidence::Uniform => row = uniform.clone(),
                 WrongEvidence::Ranges { hiic, loic } => {
-                    // Uniform among the C − 1 wrong classes.
-                    let mut w = rng.random_range(0..c - 1);
-                    if w >= t {
-                        w += 1;
-                    }
+                    let w = match draw {
+                        // Uniform among the C − 1 wrong classes.
+                        WrongClassDraw::Others => {
+                            let w = rng.random_range(0..c - 1);
+                            if w >= t { w + 1 } else { w }
+                        }
+                        WrongClassDraw::AnyClass => {
+                            let w = rng.random_range(0..c);
+                            if w == t {
+                                // The true class got boosted: this place is right.
+                                wrong[i] = false;
+                            }
+                            w
+                        }
+                    };
                     row = (0..c)
                         .map(|k| {
                             let r = if k == w { hiic } else { loic };
@@ -334,12 +376,36 @@ pub fn simulate_map_evidence(
     placeholders_without_evidence: bool,
     seed: u64,
 ) -> Result<SimulatedEvidence, EvidenceSimError> {
+    simulate_map_evidence_with(
+        map,
+        level,
+        placeholders_without_evidence,
+        seed,
+        WrongClassDraw::Others,
+    )
+}
+
+/// [`simulate_map_evidence`] with a choice of how the wrong class is drawn.
+pub fn simulate_map_evidence_with(
+    map: &TopoMap,
+    level: NoiseLevel,
+    placeholders_without_evidence: bool,
+    seed: u64,
+    draw: WrongClassDraw,
+) -> Result<SimulatedEvidence, EvidenceSimError> {
     let truth = map_truth(map)?;
     let no_ev: Vec<bool> = map
         .places()
         .map(|p| placeholders_without_evidence && p.placeholder)
         .collect();
-    simulate_evidence(&truth, map.classes.len(), &no_ev, &level.params(), seed)
+    simulate_evidence_with(
+        &truth,
+        map.classes.len(),
+        &no_ev,
+        &level.params(),
+        seed,
+        draw,
+    )
 }
 
 /// The ground-truth classes of a map in place order (error if one is missing).

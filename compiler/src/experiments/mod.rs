@@ -1,3 +1,5 @@
 //! Evidence simulation and the paper's experiments.
 
 pub mod evidence;
+pub mod report;
+pub mod reproduce;

@@ -1,0 +1,711 @@
+//! REPORT.md, results.json and the SVG figures of a reproduction run.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::evidence::{NoiseLevel, PAPER_TABLE1};
+use super::reproduce::{
+    BuildingSetup, Experiment, MODELS, ReproduceConfig, ReproduceError, Reproduction, roc_curve,
+    run_graph,
+};
+use crate::map::TopoMap;
+use crate::render::{RenderOptions, escape_xml, render_svg};
+use crate::template::Template;
+
+/// The paper's Table 2 (placeholder accuracy, %): `(model, level, [Freiburg, Saarbrucken, Stockholm])`.
+pub const PAPER_TABLE2: [(&str, u8, [f64; 3]); 6] = [
+    ("GraphSPN", 2, [67.58, 78.15, 67.57]),
+    ("GraphSPN", 5, [40.59, 55.18, 37.56]),
+    ("MRF-2", 2, [28.32, 39.85, 12.44]),
+    ("MRF-2", 5, [24.23, 30.58, 10.04]),
+    ("MRF-3", 2, [28.71, 31.94, 10.11]),
+    ("MRF-3", 5, [18.02, 28.86, 8.96]),
+];
+
+fn paper_table2(model: &str, level: u8, building: &str) -> Option<f64> {
+    let bi = crate::map::cold::BUILDINGS
+        .iter()
+        .position(|b| *b == building)?;
+    PAPER_TABLE2
+        .iter()
+        .find(|(m, l, _)| *m == model && *l == level)
+        .map(|(_, _, v)| v[bi])
+}
+
+/// Mean and (population) standard deviation of the finite values, or `None`.
+pub fn mean_std(v: &[f64]) -> Option<(f64, f64)> {
+    let v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let s = (v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n).sqrt();
+    Some((m, s))
+}
+
+fn pct(ms: Option<(f64, f64)>) -> String {
+    match ms {
+        Some((m, s)) => format!("{:.1} ± {:.1}", 100.0 * m, 100.0 * s),
+        None => "–".into(),
+    }
+}
+
+/// Accuracies of `model` (index into [`MODELS`], or `None` = evidence only) for
+/// one building (or all when `building` is `None`), experiment and level.
+pub fn select(
+    rep: &Reproduction,
+    model: Option<usize>,
+    building: Option<&str>,
+    e: Experiment,
+    level: u8,
+) -> Vec<f64> {
+    rep.graphs
+        .iter()
+        .filter(|g| {
+            g.experiment == e && g.level == level && building.is_none_or(|b| g.building == b)
+        })
+        .map(|g| match model {
+            Some(k) => g.accuracy[k],
+            None => g.evidence_only,
+        })
+        .collect()
+}
+
+fn levels_of(rep: &Reproduction) -> Vec<u8> {
+    let mut l: Vec<u8> = rep.graphs.iter().map(|g| g.level).collect();
+    l.sort_unstable();
+    l.dedup();
+    l
+}
+
+fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool) -> String {
+    let levels = levels_of(rep);
+    let mut s = String::new();
+    let mut head = "| Test building | Model |".to_string();
+    let mut rule = "|---|---|".to_string();
+    for l in &levels {
+        let _ = write!(head, " NL{l} |");
+        rule.push_str("---|");
+        if with_paper && (*l == 2 || *l == 5) {
+            let _ = write!(head, " paper NL{l} |");
+            rule.push_str("---|");
+        }
+    }
+    let _ = writeln!(s, "{head}\n{rule}");
+    let mut buildings: Vec<Option<&str>> = rep
+        .buildings
+        .iter()
+        .map(|b| Some(b.building.as_str()))
+        .collect();
+    if rep.buildings.len() > 1 {
+        buildings.push(None);
+    }
+    for b in buildings {
+        let rows: Vec<(&str, Option<usize>)> = vec![
+            ("GraphSPN", Some(0)),
+            ("MRF-2", Some(1)),
+            ("MRF-3", Some(2)),
+            ("evidence only", None),
+        ];
+        for (name, k) in rows {
+            let _ = write!(s, "| {} | {name} |", b.unwrap_or("**all**"));
+            for &l in &levels {
+                let _ = write!(s, " {} |", pct(mean_std(&select(rep, k, b, e, l))));
+                if with_paper && (l == 2 || l == 5) {
+                    let p = b.and_then(|b| paper_table2(name, l, b));
+                    let _ = write!(
+                        s,
+                        " {} |",
+                        p.map(|v| format!("{v:.1}")).unwrap_or_else(|| "–".into())
+                    );
+                }
+            }
+            s.push('\n');
+        }
+    }
+    s
+}
+
+fn bp_convergence(rep: &Reproduction) -> String {
+    let n = rep.graphs.len().max(1) as f64;
+    let c2 = rep.graphs.iter().filter(|g| g.bp_converged[0]).count() as f64;
+    let c3 = rep.graphs.iter().filter(|g| g.bp_converged[1]).count() as f64;
+    format!(
+        "Loopy BP converged on {:.1}% (MRF-2) and {:.1}% (MRF-3) of the test graphs.\n",
+        100.0 * c2 / n,
+        100.0 * c3 / n
+    )
+}
+
+/// Writes REPORT.md, results.json and the figures into `out`.
+/// `extra` is appended to the report (e.g. the CLI's notes).
+pub fn write_outputs(
+    rep: &Reproduction,
+    setups: &[BuildingSetup],
+    cfg: &ReproduceConfig,
+    out: &Path,
+    extra: &str,
+) -> Result<(), ReproduceError> {
+    let io = |path: &Path| {
+        let p = path.display().to_string();
+        move |source| ReproduceError::Io { path: p, source }
+    };
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let write = |name: &str, text: &str| -> Result<(), ReproduceError> {
+        let p = out.join(name);
+        std::fs::write(&p, text).map_err(io(&p))
+    };
+    write(
+        "results.json",
+        &serde_json::to_string_pretty(rep).unwrap_or_default(),
+    )?;
+    let mut figures = Vec::new();
+    for b in &rep.buildings {
+        let name = format!("accuracy_{}.svg", b.building);
+        write(&name, &accuracy_plot(rep, &b.building))?;
+        figures.push(name);
+    }
+    if rep.auc.is_some() {
+        write("roc.svg", &roc_plot(rep))?;
+        figures.push("roc.svg".into());
+    }
+    // Fig. 8- and Fig. 6-style panels for the first test map of each building.
+    let fig_level = *cfg
+        .levels
+        .iter()
+        .filter(|l| l.get() <= 4)
+        .max()
+        .unwrap_or(&cfg.levels[0]);
+    let pie_level = cfg
+        .levels
+        .iter()
+        .copied()
+        .find(|l| l.get() == 2)
+        .unwrap_or(cfg.levels[0]);
+    for setup in setups {
+        let o = run_graph(setup, 0, fig_level, 0, Experiment::Classification, cfg)?;
+        let name = format!("fig8_{}.svg", setup.building);
+        write(&name, &fig8_panel(setup, &o, fig_level))?;
+        figures.push(name);
+        let o = run_graph(setup, 0, pie_level, 0, Experiment::Placeholders, cfg)?;
+        let name = format!("placeholders_{}.svg", setup.building);
+        write(&name, &pie_panel(&setup.maps[0], &o, pie_level))?;
+        figures.push(name);
+    }
+    write(
+        "REPORT.md",
+        &report_markdown(rep, cfg, &figures, fig_level, pie_level, extra),
+    )?;
+    Ok(())
+}
+
+fn report_markdown(
+    rep: &Reproduction,
+    cfg: &ReproduceConfig,
+    figures: &[String],
+    fig_level: NoiseLevel,
+    pie_level: NoiseLevel,
+    extra: &str,
+) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# GraphSPN reproduction report\n");
+    let _ = writeln!(
+        s,
+        "Seed {}; {} test building(s); {} maps × {} rounds per building and level; \
+         instance GraphSPN from the best {} of {} decompositions; evidence noise: {}. \
+         Run time {:.1} s.\n",
+        rep.seed,
+        rep.buildings.len(),
+        cfg.maps_per_building,
+        cfg.rounds,
+        rep.decompositions.0,
+        rep.decompositions.1,
+        if rep.paper_noise {
+            "**paper-effective** (wrong class drawn among all 10 classes, `--paper-noise`)"
+        } else {
+            "protocol as written (wrong class drawn among the 9 others)"
+        },
+        rep.seconds
+    );
+    let _ = writeln!(
+        s,
+        "Training settings: `{}`; GraphSPN evidence exponent {}.\n",
+        rep.training, cfg.evidence_exponent
+    );
+    let _ = writeln!(s, "## Test maps\n");
+    let _ = writeln!(
+        s,
+        "| Test building | Trained on | Test maps | GraphSPN training (s) |\n|---|---|---|---|"
+    );
+    for b in &rep.buildings {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.2} |",
+            b.building,
+            b.trained_on.join(", "),
+            b.test_maps.join(", "),
+            b.train_seconds
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n## Classification accuracy over all places (paper Fig. 5)\n\n\
+         Mean ± std over the test graphs, in %. Paper: GraphSPN above 80% at every \
+         noise level and test building (read from Fig. 5; the text gives no exact \
+         values); MRF-2 good at low noise and deteriorating quickly; MRF-3 worse than MRF-2.\n"
+    );
+    s.push_str(&accuracy_table(rep, Experiment::Classification, false));
+    s.push('\n');
+    s.push_str(&bp_convergence(rep));
+    let _ = writeln!(
+        s,
+        "\n## Placeholders without evidence (paper Table 2)\n\n\
+         Accuracy over placeholders only (they get a uniform evidence row), mean ± std \
+         over the test graphs with at least one placeholder, in %; the paper's numbers \
+         (NL2 and NL5 only) beside ours.\n"
+    );
+    s.push_str(&accuracy_table(rep, Experiment::Placeholders, true));
+    if let Some(a) = rep.auc {
+        let _ = writeln!(
+            s,
+            "\n## Novelty detection (paper Fig. 7)\n\n\
+             Per-variable log-likelihood of the labelled test maps (no evidence): \
+             {} labellings, of which {} novel (CR↔DW, CR↔1PO swaps) and {} not \
+             (originals, 1PO↔2PO swaps). A low score flags novelty. The paper reports \
+             ROC curves only (all three models good, MRFs slightly better than GraphSPN).\n",
+            rep.novelty.len(),
+            rep.novelty.iter().filter(|n| n.novel).count(),
+            rep.novelty.iter().filter(|n| !n.novel).count()
+        );
+        let _ = writeln!(s, "| Model | AUC |\n|---|---|");
+        for (k, m) in MODELS.iter().enumerate() {
+            let _ = writeln!(s, "| {m} | {:.3} |", a[k]);
+        }
+        let _ = writeln!(
+            s,
+            "\nMean per-variable log-likelihood by variant:\n\n| Variant | GraphSPN | MRF-2 | MRF-3 |\n|---|---|---|---|"
+        );
+        for v in ["original", "1PO<->2PO", "CR<->DW", "CR<->1PO"] {
+            let _ = write!(s, "| {v} |");
+            for k in 0..3 {
+                let vals: Vec<f64> = rep
+                    .novelty
+                    .iter()
+                    .filter(|n| n.variant == v)
+                    .map(|n| n.score[k])
+                    .collect();
+                match mean_std(&vals) {
+                    Some((m, sd)) => {
+                        let _ = write!(s, " {m:.3} ± {sd:.3} |");
+                    }
+                    None => s.push_str(" – |"),
+                }
+            }
+            s.push('\n');
+        }
+    }
+    if !rep.table1.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## Evidence statistics (paper Table 1)\n\n\
+             On the test maps' ground truth, {} rounds per map.\n\n\
+             | NL | D_groundtruth ours | paper | D_incorrect ours | paper |\n|---|---|---|---|---|",
+            cfg.rounds
+        );
+        for &(l, gm, gs, im, is) in &rep.table1 {
+            let p = PAPER_TABLE1[(l - 1) as usize];
+            let _ = writeln!(
+                s,
+                "| {l} | {gm:.3} ± {gs:.3} | {:.3} ± {:.3} | {im:.3} ± {is:.3} | {:.3} ± {:.3} |",
+                p.1.0, p.1.1, p.2.0, p.2.1
+            );
+        }
+    }
+    let _ = writeln!(s, "\n## Figures\n");
+    let _ = writeln!(
+        s,
+        "`accuracy_*.svg`: accuracy vs noise level per test building (lines: models; \
+         grey dashed: evidence only). `roc.svg`: novelty-detection ROC. \
+         `fig8_*.svg`: first test map at {fig_level} (ground truth; places whose \
+         evidence argmax is wrong in black; GraphSPN's labels; MRF-2's labels). \
+         `placeholders_*.svg`: GraphSPN's marginals of the placeholders (pies) at \
+         {pie_level}, explored places in their true class, wrong-evidence places in black.\n"
+    );
+    for f in figures {
+        let _ = writeln!(s, "- [{f}]({f})");
+    }
+    let _ = writeln!(
+        s,
+        "\n## Generated code check (pending)\n\n\
+         GraphSPN marginals above come from the instance GraphSPN evaluated by the \
+         interpreter. The generated code applies to a fixed map; the maps that would \
+         be compiled are the figure maps: {}. The check that the generated code's \
+         marginals agree with the interpreter's on these maps is PENDING (hook: \
+         `experiments::report`, section \"Generated code check\").",
+        rep.buildings
+            .iter()
+            .filter_map(|b| b.test_maps.first().cloned())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    s.push_str(extra);
+    s
+}
+
+// ---------------------------------------------------------------- figures
+
+const MODEL_COLOURS: [&str; 3] = ["#d62728", "#1f77b4", "#2ca02c"];
+
+/// An SVG line chart frame: returns (svg prefix, x→px, y→px) for data in [x0,x1]×[0,1].
+struct Frame {
+    w: f64,
+    h: f64,
+    left: f64,
+    top: f64,
+    pw: f64,
+    ph: f64,
+    x0: f64,
+    x1: f64,
+}
+
+impl Frame {
+    fn px(&self, x: f64) -> f64 {
+        self.left + (x - self.x0) / (self.x1 - self.x0) * self.pw
+    }
+    fn py(&self, y: f64) -> f64 {
+        self.top + (1.0 - y) * self.ph
+    }
+    fn start(&self, title: &str, xlabel: &str, ylabel: &str) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" font-family="sans-serif" font-size="12">"#,
+            w = self.w,
+            h = self.h
+        );
+        let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="20" font-size="15" text-anchor="middle">{}</text>"#,
+            self.w / 2.0,
+            escape_xml(title)
+        );
+        let _ = writeln!(
+            s,
+            r##"<rect x="{}" y="{}" width="{}" height="{}" fill="none" stroke="#333"/>"##,
+            self.left, self.top, self.pw, self.ph
+        );
+        for k in 0..=10 {
+            let y = k as f64 / 10.0;
+            let _ = writeln!(
+                s,
+                r##"<line x1="{l}" x2="{r}" y1="{y}" y2="{y}" stroke="#ddd"/><text x="{tx}" y="{ty}" text-anchor="end">{lab}</text>"##,
+                l = self.left,
+                r = self.left + self.pw,
+                y = self.py(y),
+                tx = self.left - 5.0,
+                ty = self.py(y) + 4.0,
+                lab = if self.x1 > 1.5 {
+                    format!("{}", k * 10)
+                } else {
+                    format!("{y:.1}")
+                }
+            );
+        }
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
+            self.left + self.pw / 2.0,
+            self.h - 8.0,
+            escape_xml(xlabel)
+        );
+        let _ = writeln!(
+            s,
+            r#"<text transform="translate(14,{}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            self.top + self.ph / 2.0,
+            escape_xml(ylabel)
+        );
+        s
+    }
+}
+
+fn polyline(pts: &[(f64, f64)], colour: &str, dash: bool) -> String {
+    let p: Vec<String> = pts.iter().map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
+    format!(
+        r#"<polyline points="{}" fill="none" stroke="{colour}" stroke-width="2"{}/>"#,
+        p.join(" "),
+        if dash {
+            r#" stroke-dasharray="6 4""#
+        } else {
+            ""
+        }
+    ) + "\n"
+}
+
+fn legend(s: &mut String, x: f64, y: f64, items: &[(&str, &str)]) {
+    for (i, (name, col)) in items.iter().enumerate() {
+        let yy = y + 16.0 * i as f64;
+        let _ = writeln!(
+            s,
+            r#"<line x1="{x}" x2="{}" y1="{yy}" y2="{yy}" stroke="{col}" stroke-width="3"/><text x="{}" y="{}">{}</text>"#,
+            x + 20.0,
+            x + 25.0,
+            yy + 4.0,
+            escape_xml(name)
+        );
+    }
+}
+
+/// Accuracy (%) vs noise level for one building: one line per model, ± std bars.
+pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
+    let levels = levels_of(rep);
+    let (lo, hi) = (
+        *levels.first().unwrap_or(&1) as f64,
+        *levels.last().unwrap_or(&6) as f64,
+    );
+    let fr = Frame {
+        w: 520.0,
+        h: 360.0,
+        left: 55.0,
+        top: 35.0,
+        pw: 330.0,
+        ph: 280.0,
+        x0: lo - 0.3,
+        x1: hi + 0.3,
+    };
+    let mut s = fr.start(
+        &format!("Classification accuracy, test building {building}"),
+        "noise level",
+        "accuracy (%)",
+    );
+    for &l in &levels {
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}" text-anchor="middle">NL{l}</text>"#,
+            fr.px(l as f64),
+            fr.top + fr.ph + 16.0
+        );
+    }
+    let mut items = Vec::new();
+    for (k, model) in [Some(0), Some(1), Some(2), None].into_iter().enumerate() {
+        let (col, name, dash) = match model {
+            Some(m) => (MODEL_COLOURS[m], MODELS[m], false),
+            None => ("#888888", "evidence only", true),
+        };
+        let mut pts = Vec::new();
+        for &l in &levels {
+            if let Some((m, sd)) = mean_std(&select(
+                rep,
+                model,
+                Some(building),
+                Experiment::Classification,
+                l,
+            )) {
+                let x = fr.px(l as f64) + (k as f64 - 1.5) * 3.0;
+                pts.push((x, fr.py(m)));
+                let _ = writeln!(
+                    s,
+                    r#"<line x1="{x:.1}" x2="{x:.1}" y1="{:.1}" y2="{:.1}" stroke="{col}"/>"#,
+                    fr.py((m - sd).max(0.0)),
+                    fr.py((m + sd).min(1.0))
+                );
+            }
+        }
+        s.push_str(&polyline(&pts, col, dash));
+        items.push((name, col));
+    }
+    legend(&mut s, fr.left + fr.pw + 15.0, fr.top + 20.0, &items);
+    s.push_str("</svg>\n");
+    s
+}
+
+/// ROC curves of the novelty experiment, one per model, with AUC in the legend.
+pub fn roc_plot(rep: &Reproduction) -> String {
+    let fr = Frame {
+        w: 520.0,
+        h: 380.0,
+        left: 55.0,
+        top: 35.0,
+        pw: 300.0,
+        ph: 300.0,
+        x0: 0.0,
+        x1: 1.0,
+    };
+    let mut s = fr.start(
+        "Novelty detection ROC",
+        "false-positive rate",
+        "true-positive rate",
+    );
+    for k in 0..=10 {
+        let x = k as f64 / 10.0;
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}" text-anchor="middle">{x:.1}</text>"#,
+            fr.px(x),
+            fr.top + fr.ph + 16.0
+        );
+    }
+    s.push_str(&polyline(
+        &[(fr.px(0.0), fr.py(0.0)), (fr.px(1.0), fr.py(1.0))],
+        "#bbbbbb",
+        true,
+    ));
+    let mut names = Vec::new();
+    for k in 0..3 {
+        let pts: Vec<(f64, bool)> = rep.novelty.iter().map(|n| (n.score[k], n.novel)).collect();
+        let curve: Vec<(f64, f64)> = roc_curve(&pts)
+            .into_iter()
+            .map(|(x, y)| (fr.px(x), fr.py(y)))
+            .collect();
+        s.push_str(&polyline(&curve, MODEL_COLOURS[k], false));
+        let a = rep.auc.map(|a| a[k]).unwrap_or(f64::NAN);
+        names.push(format!("{} (AUC {a:.3})", MODELS[k]));
+    }
+    let items: Vec<(&str, &str)> = names
+        .iter()
+        .zip(MODEL_COLOURS)
+        .map(|(n, c)| (n.as_str(), c))
+        .collect();
+    legend(&mut s, fr.left + fr.pw + 15.0, fr.top + 20.0, &items);
+    s.push_str("</svg>\n");
+    s
+}
+
+/// `map` with its classes replaced by the argmax of `probs`.
+fn relabel(map: &TopoMap, probs: &[Vec<f64>]) -> TopoMap {
+    let mut m = map.clone();
+    for (i, w) in m.graph.node_weights_mut().enumerate() {
+        let row = &probs[i];
+        let best = (0..row.len())
+            .max_by(|&a, &b| row[a].total_cmp(&row[b]).then(b.cmp(&a)))
+            .unwrap_or(0);
+        w.class = Some(best as crate::map::ClassId);
+    }
+    m
+}
+
+/// Width and height of a `render_svg` drawing (from its root element).
+fn svg_size(svg: &str) -> (f64, f64) {
+    let get = |key: &str| -> f64 {
+        svg.find(&format!(" {key}=\""))
+            .and_then(|i| {
+                let rest = &svg[i + key.len() + 3..];
+                rest.find('"').and_then(|j| rest[..j].parse().ok())
+            })
+            .unwrap_or(400.0)
+    };
+    (get("width"), get("height"))
+}
+
+/// Places the drawings side by side in one SVG (nested `<svg>` elements).
+pub fn compose_side_by_side(drawings: &[String]) -> String {
+    let sizes: Vec<(f64, f64)> = drawings.iter().map(|d| svg_size(d)).collect();
+    let w: f64 = sizes.iter().map(|s| s.0).sum();
+    let h = sizes.iter().map(|s| s.1).fold(0.0, f64::max);
+    let mut s = format!(
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{h:.0}" viewBox="0 0 {w:.0} {h:.0}">"#
+    );
+    s.push('\n');
+    let mut x = 0.0;
+    for (d, (dw, _)) in drawings.iter().zip(&sizes) {
+        let body = d.replacen("<svg ", &format!(r#"<svg x="{x:.0}" y="0" "#), 1);
+        s.push_str(&body);
+        x += dw;
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn wrong_places(o: &super::reproduce::GraphOutcome) -> Vec<usize> {
+    (0..o.evidence.wrong.len())
+        .filter(|&i| o.evidence.wrong[i])
+        .collect()
+}
+
+fn fig8_panel(
+    setup: &BuildingSetup,
+    o: &super::reproduce::GraphOutcome,
+    level: NoiseLevel,
+) -> String {
+    let map = &setup.maps[0];
+    let wrong = wrong_places(o);
+    let templates = Template::paper_set();
+    let acc = &o.result.accuracy;
+    let d = [
+        render_svg(
+            map,
+            &RenderOptions {
+                title: Some(format!("{} ground truth", map.name)),
+                ..RenderOptions::default()
+            },
+        ),
+        render_svg(
+            map,
+            &RenderOptions {
+                title: Some(format!("{level}: wrong evidence (black), decomposition 1")),
+                decomposition: setup.instances[0].0.first(),
+                templates: Some(&templates),
+                highlight: &wrong,
+                ..RenderOptions::default()
+            },
+        ),
+        render_svg(
+            &relabel(map, &o.marginals[0]),
+            &RenderOptions {
+                title: Some(format!("GraphSPN ({:.1}%)", 100.0 * acc[0])),
+                ..RenderOptions::default()
+            },
+        ),
+        render_svg(
+            &relabel(map, &o.marginals[1]),
+            &RenderOptions {
+                title: Some(format!("MRF-2 ({:.1}%)", 100.0 * acc[1])),
+                ..RenderOptions::default()
+            },
+        ),
+    ];
+    compose_side_by_side(&d)
+}
+
+fn pie_panel(map: &TopoMap, o: &super::reproduce::GraphOutcome, level: NoiseLevel) -> String {
+    let c = map.classes.len();
+    let dists: Vec<Vec<f64>> = map
+        .places()
+        .enumerate()
+        .map(|(i, p)| {
+            if p.placeholder {
+                o.marginals[0][i].clone()
+            } else {
+                let mut v = vec![0.0; c];
+                if let Some(k) = p.class {
+                    v[k as usize] = 1.0;
+                }
+                v
+            }
+        })
+        .collect();
+    let wrong = wrong_places(o);
+    let d = [
+        render_svg(
+            map,
+            &RenderOptions {
+                title: Some(format!("{} ground truth (placeholders dashed)", map.name)),
+                ..RenderOptions::default()
+            },
+        ),
+        render_svg(
+            map,
+            &RenderOptions {
+                title: Some(format!(
+                    "{level}: GraphSPN placeholder marginals ({:.1}% correct)",
+                    100.0 * o.result.accuracy[0]
+                )),
+                distributions: Some(&dists),
+                highlight: &wrong,
+                ..RenderOptions::default()
+            },
+        ),
+    ];
+    compose_side_by_side(&d)
+}

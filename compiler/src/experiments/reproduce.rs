@@ -1,0 +1,767 @@
+//! The paper's experiments end to end (the `graphspn reproduce` command):
+//! for each test building, train GraphSPN, MRF-2 and MRF-3 on the other two
+//! buildings, then on `maps_per_building` seeded test maps × `rounds` evidence
+//! rounds × every noise level measure
+//! - classification accuracy over all places (the paper's Fig. 5),
+//! - accuracy on placeholders given no evidence (Table 2),
+//!
+//! and, with certain labels and no evidence, the per-variable log-likelihood of
+//! original / consistent-swap / novel-swap labellings (novelty detection, Fig. 7).
+//!
+//! Every random step's seed is derived from `(seed, building, map, level, round,
+//! experiment)` with [`derive_seed`], and parallel work is collected in a fixed
+//! order, so results do not depend on the number of threads.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use rand::SeedableRng;
+use rand::seq::index::sample;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use super::evidence::{
+    EvidenceSimError, LevelStats, NoiseLevel, SimulatedEvidence, WrongClassDraw, derive_seed,
+    level_statistics, map_truth, simulate_map_evidence_with,
+};
+use crate::decompose::{DecomposeError, Decomposition, DecompositionParams, decompose_best};
+use crate::instance::{Instance, InstanceError};
+use crate::interpreter::{Evaluator, Evidence, InferenceError};
+use crate::learn::{Model, Progress, TrainModelError, TrainingSettings, train_model};
+use crate::map::{ClassId, MapError, TopoMap, cold};
+use crate::mrf::{BpOptions, CooccurrenceParams, Mrf2, Mrf3, MrfError, MrfModel};
+use crate::template::Template;
+
+/// Why a reproduction run failed.
+#[derive(Debug, Error)]
+pub enum ReproduceError {
+    /// Loading the maps failed.
+    #[error("loading building {building}: {source}")]
+    Load {
+        /// Building name.
+        building: String,
+        /// What failed.
+        source: MapError,
+    },
+    /// A configuration value is unusable.
+    #[error("bad configuration: {0}")]
+    Config(String),
+    /// Training GraphSPN failed.
+    #[error("training GraphSPN for test building {building}: {source}")]
+    Train {
+        /// Test building.
+        building: String,
+        /// What failed.
+        source: TrainModelError,
+    },
+    /// Training an MRF failed, or its inference failed.
+    #[error("MRF on {what}: {source}")]
+    Mrf {
+        /// Map / model.
+        what: String,
+        /// What failed.
+        source: MrfError,
+    },
+    /// Decomposing a test map failed.
+    #[error("decomposing test map {map}: {source}")]
+    Decompose {
+        /// Map name.
+        map: String,
+        /// What failed.
+        source: DecomposeError,
+    },
+    /// Building an instance GraphSPN failed.
+    #[error("instance GraphSPN of {map}: {source}")]
+    Instance {
+        /// Map name.
+        map: String,
+        /// What failed.
+        source: InstanceError,
+    },
+    /// Inference in an instance GraphSPN failed.
+    #[error("GraphSPN inference on {map}: {source}")]
+    Inference {
+        /// Map name.
+        map: String,
+        /// What failed.
+        source: InferenceError,
+    },
+    /// Evidence simulation failed.
+    #[error("simulating evidence for {map}: {source}")]
+    Evidence {
+        /// Map name.
+        map: String,
+        /// What failed.
+        source: EvidenceSimError,
+    },
+    /// Writing an output file failed.
+    #[error("writing {path}: {source}")]
+    Io {
+        /// File.
+        path: String,
+        /// What failed.
+        source: std::io::Error,
+    },
+}
+
+/// What to run. [`ReproduceConfig::full`] is the paper's protocol,
+/// [`ReproduceConfig::quick`] a reduced smoke run.
+#[derive(Clone, Debug)]
+pub struct ReproduceConfig {
+    /// Master seed.
+    pub seed: u64,
+    /// Test buildings (each is tested with a model trained on the other buildings).
+    pub test_buildings: Vec<String>,
+    /// Test maps per building (paper: 5), chosen at random (seeded).
+    pub maps_per_building: usize,
+    /// Evidence rounds per map and level (paper: 3).
+    pub rounds: usize,
+    /// Noise levels.
+    pub levels: Vec<NoiseLevel>,
+    /// Decompositions in each instance GraphSPN (paper: 5) and candidates scored (15).
+    pub decomposition: DecompositionParams,
+    /// GraphSPN training settings (the seed is replaced per building).
+    pub training: TrainingSettings,
+    /// MRF potentials.
+    pub cooccurrence: CooccurrenceParams,
+    /// Loopy BP options.
+    pub bp: BpOptions,
+    /// How wrong evidence classes are drawn (protocol as written, or the paper's effective noise).
+    pub wrong_draw: WrongClassDraw,
+    /// Run the novelty-detection experiment.
+    pub novelty: bool,
+    /// GraphSPN only: each evidence row is raised to this power (then
+    /// renormalised) before inference; 1 = the evidence as simulated. A
+    /// calibration knob, to be chosen on training buildings only.
+    pub evidence_exponent: f64,
+    /// Progress bars.
+    pub progress: Progress,
+}
+
+impl ReproduceConfig {
+    /// The paper's protocol: 3 buildings, 5 maps, 3 rounds, NL1..6, D = 5 of 15.
+    pub fn full(seed: u64) -> Self {
+        ReproduceConfig {
+            seed,
+            test_buildings: cold::BUILDINGS.iter().map(|s| s.to_string()).collect(),
+            maps_per_building: 5,
+            rounds: 3,
+            levels: NoiseLevel::all().to_vec(),
+            decomposition: DecompositionParams::default(),
+            training: TrainingSettings::default(),
+            cooccurrence: CooccurrenceParams::default(),
+            bp: BpOptions::default(),
+            wrong_draw: WrongClassDraw::Others,
+            novelty: true,
+            evidence_exponent: 1.0,
+            progress: Progress::Auto,
+        }
+    }
+
+    /// A reduced run: 1 building (Stockholm), 2 maps, NL2 and NL5, 1 round.
+    pub fn quick(seed: u64) -> Self {
+        let lv = |l| NoiseLevel::new(l).expect("levels 2 and 5 exist");
+        ReproduceConfig {
+            test_buildings: vec!["Stockholm".into()],
+            maps_per_building: 2,
+            rounds: 1,
+            levels: vec![lv(2), lv(5)],
+            bp: BpOptions {
+                max_iterations: 200,
+                ..BpOptions::default()
+            },
+            ..ReproduceConfig::full(seed)
+        }
+    }
+}
+
+/// The two inference experiments.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Experiment {
+    /// Every place has evidence; accuracy over all places (Fig. 5).
+    Classification,
+    /// Placeholders get no evidence; accuracy over placeholders only (Table 2).
+    Placeholders,
+}
+
+/// The models compared.
+pub const MODELS: [&str; 3] = ["GraphSPN", "MRF-2", "MRF-3"];
+
+/// One test graph's result.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GraphResult {
+    /// Test building.
+    pub building: String,
+    /// Map name.
+    pub map: String,
+    /// Noise level (1..6).
+    pub level: u8,
+    /// Evidence round.
+    pub round: usize,
+    /// Which experiment.
+    pub experiment: Experiment,
+    /// Places scored (all places, or the placeholders).
+    pub scored: usize,
+    /// Accuracy of the evidence's argmax alone (ties split evenly).
+    pub evidence_only: f64,
+    /// Accuracy per model, in [`MODELS`] order (ties split evenly).
+    pub accuracy: [f64; 3],
+    /// Whether loopy BP converged, for MRF-2 and MRF-3.
+    pub bp_converged: [bool; 2],
+}
+
+/// One labelled map of the novelty experiment.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct NoveltyResult {
+    /// Test building.
+    pub building: String,
+    /// Map name.
+    pub map: String,
+    /// `original`, `1PO<->2PO`, `CR<->DW` or `CR<->1PO`.
+    pub variant: String,
+    /// Whether the labelling counts as novel (the CR swaps).
+    pub novel: bool,
+    /// Number of variables (places).
+    pub variables: usize,
+    /// Log-likelihood per variable (natural log), in [`MODELS`] order.
+    pub score: [f64; 3],
+}
+
+/// Per-building facts.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct BuildingInfo {
+    /// Test building.
+    pub building: String,
+    /// Training buildings.
+    pub trained_on: Vec<String>,
+    /// Test maps chosen (names, sorted).
+    pub test_maps: Vec<String>,
+    /// Seconds spent training GraphSPN.
+    pub train_seconds: f64,
+}
+
+/// Everything a run measured (written as results.json).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Reproduction {
+    /// Master seed.
+    pub seed: u64,
+    /// Whether the paper's effective noise (wrong class drawn among all classes) was used.
+    pub paper_noise: bool,
+    /// Decompositions per instance and candidates.
+    pub decompositions: (usize, usize),
+    /// Training settings used (JSON).
+    pub training: serde_json::Value,
+    /// GraphSPN evidence exponent used (1 = none).
+    pub evidence_exponent: f64,
+    /// Per building.
+    pub buildings: Vec<BuildingInfo>,
+    /// Per test graph.
+    pub graphs: Vec<GraphResult>,
+    /// Novelty experiment.
+    pub novelty: Vec<NoveltyResult>,
+    /// Area under the ROC curve per model ([`MODELS`] order), pooled over buildings.
+    pub auc: Option<[f64; 3]>,
+    /// Table 1 statistics of the evidence simulated on the test maps:
+    /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
+    pub table1: Vec<(u8, f64, f64, f64, f64)>,
+    /// Wall-clock seconds of the whole run (filled by the caller).
+    pub seconds: f64,
+}
+
+/// A trained test setup for one building.
+pub struct BuildingSetup {
+    /// Test building.
+    pub building: String,
+    /// The GraphSPN model.
+    pub model: Model,
+    /// MRF-2.
+    pub mrf2: Mrf2,
+    /// MRF-3.
+    pub mrf3: Mrf3,
+    /// Test maps.
+    pub maps: Vec<TopoMap>,
+    /// Per test map: its instance's decompositions and an evaluator of its SPN.
+    pub instances: Vec<(Vec<Decomposition>, Evaluator)>,
+    /// Facts for the report.
+    pub info: BuildingInfo,
+}
+
+/// Index of a building in [`cold::BUILDINGS`] (for seeds).
+fn building_index(b: &str) -> Result<u64, ReproduceError> {
+    cold::BUILDINGS
+        .iter()
+        .position(|x| *x == b)
+        .map(|i| i as u64)
+        .ok_or_else(|| ReproduceError::Config(format!("unknown building {b:?}")))
+}
+
+/// Seed tags, so different kinds of random steps never share a seed.
+const TAG_PICK: u64 = 1;
+const TAG_TRAIN: u64 = 2;
+const TAG_DECOMPOSE: u64 = 3;
+const TAG_EVIDENCE: u64 = 4;
+
+/// Trains the three models for `test_building` on the other buildings' maps in
+/// `all` (building name → maps), picks the test maps and builds their instances.
+pub fn setup_building(
+    all: &BTreeMap<String, Vec<TopoMap>>,
+    test_building: &str,
+    cfg: &ReproduceConfig,
+) -> Result<BuildingSetup, ReproduceError> {
+    let b = building_index(test_building)?;
+    let trained_on: Vec<String> = all
+        .keys()
+        .filter(|k| k.as_str() != test_building)
+        .cloned()
+        .collect();
+    let train_maps: Vec<TopoMap> = trained_on
+        .iter()
+        .flat_map(|k| all[k].iter().cloned())
+        .collect();
+    let candidates = all
+        .get(test_building)
+        .ok_or_else(|| ReproduceError::Config(format!("no maps for {test_building}")))?;
+    if candidates.len() < cfg.maps_per_building || cfg.maps_per_building == 0 {
+        return Err(ReproduceError::Config(format!(
+            "{test_building} has {} maps, {} requested",
+            candidates.len(),
+            cfg.maps_per_building
+        )));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(cfg.seed, &[TAG_PICK, b]));
+    let mut picked = sample(&mut rng, candidates.len(), cfg.maps_per_building).into_vec();
+    picked.sort_unstable();
+    let maps: Vec<TopoMap> = picked.iter().map(|&i| candidates[i].clone()).collect();
+
+    let settings = TrainingSettings {
+        seed: derive_seed(cfg.seed, &[TAG_TRAIN, b]),
+        ..cfg.training.clone()
+    };
+    let t0 = std::time::Instant::now();
+    let (model, _) = train_model(
+        &train_maps,
+        &Template::paper_set(),
+        &settings,
+        Progress::Hidden,
+    )
+    .map_err(|source| ReproduceError::Train {
+        building: test_building.into(),
+        source,
+    })?;
+    let train_seconds = t0.elapsed().as_secs_f64();
+    let mrf = |source| ReproduceError::Mrf {
+        what: format!("training for {test_building}"),
+        source,
+    };
+    let mrf2 = Mrf2::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
+    let mrf3 = Mrf3::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
+    let instances = maps
+        .iter()
+        .enumerate()
+        .map(|(m, map)| build_instance(&model, map, cfg, b, m as u64))
+        .collect::<Result<Vec<_>, _>>()?;
+    let info = BuildingInfo {
+        building: test_building.into(),
+        trained_on,
+        test_maps: maps.iter().map(|m| m.name.clone()).collect(),
+        train_seconds,
+    };
+    Ok(BuildingSetup {
+        building: test_building.into(),
+        model,
+        mrf2,
+        mrf3,
+        maps,
+        instances,
+        info,
+    })
+}
+
+fn build_instance(
+    model: &Model,
+    map: &TopoMap,
+    cfg: &ReproduceConfig,
+    b: u64,
+    m: u64,
+) -> Result<(Vec<Decomposition>, Evaluator), ReproduceError> {
+    let params = DecompositionParams {
+        seed: derive_seed(cfg.seed, &[TAG_DECOMPOSE, b, m]),
+        ..cfg.decomposition
+    };
+    let decs = decompose_best(map, &Template::paper_set(), &params).map_err(|source| {
+        ReproduceError::Decompose {
+            map: map.name.clone(),
+            source,
+        }
+    })?;
+    let inst =
+        Instance::build(model, map, decs.clone()).map_err(|source| ReproduceError::Instance {
+            map: map.name.clone(),
+            source,
+        })?;
+    let ev = Evaluator::new(&inst.spn).map_err(|e| ReproduceError::Config(e.to_string()))?;
+    Ok((decs, ev))
+}
+
+/// Accuracy of `probs` against `truth` over the places in `scored`; a place
+/// whose maximum is shared by `k` classes counts `1/k` if the truth is among them.
+pub fn accuracy(probs: &[Vec<f64>], truth: &[ClassId], scored: &[usize]) -> f64 {
+    if scored.is_empty() {
+        return f64::NAN;
+    }
+    let mut hits = 0.0;
+    for &i in scored {
+        let row = &probs[i];
+        let max = row.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let ties = row.iter().filter(|&&v| v == max).count();
+        if row[truth[i] as usize] == max {
+            hits += 1.0 / ties as f64;
+        }
+    }
+    hits / scored.len() as f64
+}
+
+/// The full outcome of one test graph (kept for figures).
+pub struct GraphOutcome {
+    /// Scores.
+    pub result: GraphResult,
+    /// The simulated evidence.
+    pub evidence: SimulatedEvidence,
+    /// Marginals per model ([`MODELS`] order).
+    pub marginals: [Vec<Vec<f64>>; 3],
+}
+
+/// Runs the three models on map `m` of `setup` at `level`, round `round`.
+pub fn run_graph(
+    setup: &BuildingSetup,
+    m: usize,
+    level: NoiseLevel,
+    round: usize,
+    experiment: Experiment,
+    cfg: &ReproduceConfig,
+) -> Result<GraphOutcome, ReproduceError> {
+    let map = &setup.maps[m];
+    let b = building_index(&setup.building)?;
+    let seed = derive_seed(
+        cfg.seed,
+        &[
+            TAG_EVIDENCE,
+            b,
+            m as u64,
+            level.get() as u64,
+            round as u64,
+            experiment as u64,
+        ],
+    );
+    let placeholders = experiment == Experiment::Placeholders;
+    let evi = |source| ReproduceError::Evidence {
+        map: map.name.clone(),
+        source,
+    };
+    let ev =
+        simulate_map_evidence_with(map, level, placeholders, seed, cfg.wrong_draw).map_err(evi)?;
+    let truth = map_truth(map).map_err(evi)?;
+    let scored: Vec<usize> = (0..map.num_places())
+        .filter(|&i| !placeholders || map.place(i).placeholder)
+        .collect();
+    let mut evaluator = setup.instances[m].1.clone();
+    let fixed = vec![None; map.num_places()];
+    let rows = if cfg.evidence_exponent == 1.0 {
+        ev.rows.clone()
+    } else {
+        ev.rows
+            .iter()
+            .map(|r| {
+                let p: Vec<f64> = r.iter().map(|x| x.powf(cfg.evidence_exponent)).collect();
+                let s: f64 = p.iter().sum();
+                p.into_iter().map(|x| x / s).collect()
+            })
+            .collect()
+    };
+    let g = evaluator
+        .marginals(&fixed, &Evidence::from_rows(rows))
+        .map_err(|source| ReproduceError::Inference {
+            map: map.name.clone(),
+            source,
+        })?
+        .probs;
+    let mrf = |source| ReproduceError::Mrf {
+        what: map.name.clone(),
+        source,
+    };
+    let r2 = setup.mrf2.infer(map, &ev.rows, &cfg.bp).map_err(mrf)?;
+    let r3 = setup.mrf3.infer(map, &ev.rows, &cfg.bp).map_err(mrf)?;
+    let result = GraphResult {
+        building: setup.building.clone(),
+        map: map.name.clone(),
+        level: level.get(),
+        round,
+        experiment,
+        scored: scored.len(),
+        evidence_only: accuracy(&ev.rows, &truth, &scored),
+        accuracy: [
+            accuracy(&g, &truth, &scored),
+            accuracy(&r2.marginals, &truth, &scored),
+            accuracy(&r3.marginals, &truth, &scored),
+        ],
+        bp_converged: [r2.converged, r3.converged],
+    };
+    Ok(GraphOutcome {
+        result,
+        evidence: ev,
+        marginals: [g, r2.marginals, r3.marginals],
+    })
+}
+
+/// A novelty-experiment labelling: `(name, novel, classes swapped)`.
+pub type NoveltyVariant = (&'static str, bool, Option<(&'static str, &'static str)>);
+
+/// The labelling variants of the novelty experiment: `(name, novel, swap)`.
+pub const NOVELTY_VARIANTS: [NoveltyVariant; 4] = [
+    ("original", false, None),
+    ("1PO<->2PO", false, Some(("1PO", "2PO"))),
+    ("CR<->DW", true, Some(("CR", "DW"))),
+    ("CR<->1PO", true, Some(("CR", "1PO"))),
+];
+
+/// Per-variable log-likelihoods of the novelty variants of map `m`.
+pub fn run_novelty(
+    setup: &BuildingSetup,
+    m: usize,
+    cfg: &ReproduceConfig,
+) -> Result<Vec<NoveltyResult>, ReproduceError> {
+    let map = &setup.maps[m];
+    let truth = map_truth(map).map_err(|source| ReproduceError::Evidence {
+        map: map.name.clone(),
+        source,
+    })?;
+    let n = map.num_places() as f64;
+    let mut evaluator = setup.instances[m].1.clone();
+    let mut out = Vec::new();
+    for (name, novel, swap) in NOVELTY_VARIANTS {
+        let labels: Vec<ClassId> = match swap {
+            None => truth.clone(),
+            Some((a, bname)) => {
+                let (a, bb) = match (map.classes.index_of(a), map.classes.index_of(bname)) {
+                    (Some(a), Some(bb)) => (a, bb),
+                    _ => {
+                        return Err(ReproduceError::Config(format!(
+                            "map {} lacks class {a} or {bname}",
+                            map.name
+                        )));
+                    }
+                };
+                truth
+                    .iter()
+                    .map(|&t| {
+                        if t == a {
+                            bb
+                        } else if t == bb {
+                            a
+                        } else {
+                            t
+                        }
+                    })
+                    .collect()
+            }
+        };
+        let fixed: Vec<Option<u32>> = labels.iter().map(|&l| Some(l as u32)).collect();
+        let uniform = Evidence::from_rows(vec![vec![1.0; map.classes.len()]; map.num_places()]);
+        let g = evaluator
+            .log_likelihood(&fixed, &uniform)
+            .map_err(|source| ReproduceError::Inference {
+                map: map.name.clone(),
+                source,
+            })?;
+        let mrf = |source| ReproduceError::Mrf {
+            what: map.name.clone(),
+            source,
+        };
+        let l2 = setup
+            .mrf2
+            .log_likelihood_labelled(map, &labels, &cfg.bp)
+            .map_err(mrf)?;
+        let l3 = setup
+            .mrf3
+            .log_likelihood_labelled(map, &labels, &cfg.bp)
+            .map_err(mrf)?;
+        out.push(NoveltyResult {
+            building: setup.building.clone(),
+            map: map.name.clone(),
+            variant: name.into(),
+            novel,
+            variables: map.num_places(),
+            score: [g / n, l2.log_likelihood / n, l3.log_likelihood / n],
+        });
+    }
+    Ok(out)
+}
+
+/// ROC curve `(false-positive rate, true-positive rate)` points, from
+/// `(score, novel)` pairs where a LOW score means novel; starts at (0,0), ends at (1,1).
+pub fn roc_curve(points: &[(f64, bool)]) -> Vec<(f64, f64)> {
+    let pos = points.iter().filter(|p| p.1).count() as f64;
+    let neg = points.len() as f64 - pos;
+    let mut sorted: Vec<(f64, bool)> = points.to_vec();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut curve = vec![(0.0, 0.0)];
+    let (mut tp, mut fp) = (0.0, 0.0);
+    let mut i = 0;
+    while i < sorted.len() {
+        let s = sorted[i].0;
+        while i < sorted.len() && sorted[i].0 == s {
+            if sorted[i].1 {
+                tp += 1.0;
+            } else {
+                fp += 1.0;
+            }
+            i += 1;
+        }
+        curve.push((
+            if neg > 0.0 { fp / neg } else { 0.0 },
+            if pos > 0.0 { tp / pos } else { 0.0 },
+        ));
+    }
+    curve
+}
+
+/// Area under the ROC curve (trapezoidal; equals the Mann–Whitney probability
+/// that a novel map scores lower than a non-novel one, ties counting ½).
+pub fn auc(points: &[(f64, bool)]) -> f64 {
+    let c = roc_curve(points);
+    c.windows(2)
+        .map(|w| (w[1].0 - w[0].0) * (w[1].1 + w[0].1) / 2.0)
+        .sum()
+}
+
+/// Loads every building's maps.
+pub fn load_data(data: &Path) -> Result<BTreeMap<String, Vec<TopoMap>>, ReproduceError> {
+    cold::BUILDINGS
+        .iter()
+        .map(|b| {
+            cold::load_building(data, b)
+                .map(|m| (b.to_string(), m))
+                .map_err(|source| ReproduceError::Load {
+                    building: b.to_string(),
+                    source,
+                })
+        })
+        .collect()
+}
+
+/// Runs every experiment of `cfg` on the maps in `all`; returns the results
+/// and the per-building setups (for figures).
+pub fn run(
+    all: &BTreeMap<String, Vec<TopoMap>>,
+    cfg: &ReproduceConfig,
+) -> Result<(Reproduction, Vec<BuildingSetup>), ReproduceError> {
+    if !(cfg.evidence_exponent.is_finite() && cfg.evidence_exponent > 0.0) {
+        return Err(ReproduceError::Config(format!(
+            "evidence exponent must be finite and > 0, got {}",
+            cfg.evidence_exponent
+        )));
+    }
+    if cfg.levels.is_empty() || cfg.rounds == 0 {
+        return Err(ReproduceError::Config(
+            "need at least one level and one round".into(),
+        ));
+    }
+    let setups = cfg
+        .test_buildings
+        .iter()
+        .map(|b| setup_building(all, b, cfg))
+        .collect::<Result<Vec<_>, _>>()?;
+    // Every test graph: (setup, map, level, round, experiment).
+    let mut jobs = Vec::new();
+    for (s, setup) in setups.iter().enumerate() {
+        for m in 0..setup.maps.len() {
+            for &level in &cfg.levels {
+                for round in 0..cfg.rounds {
+                    for e in [Experiment::Classification, Experiment::Placeholders] {
+                        jobs.push((s, m, level, round, e));
+                    }
+                }
+            }
+        }
+    }
+    let bar = cfg.progress.bar(jobs.len() as u64, "test graphs");
+    let graphs = jobs
+        .par_iter()
+        .map(|&(s, m, level, round, e)| {
+            let r = run_graph(&setups[s], m, level, round, e, cfg).map(|o| o.result);
+            bar.inc(1);
+            r
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    bar.finish_and_clear();
+    let mut novelty = Vec::new();
+    let mut auc_v = None;
+    if cfg.novelty {
+        let njobs: Vec<(usize, usize)> = setups
+            .iter()
+            .enumerate()
+            .flat_map(|(s, st)| (0..st.maps.len()).map(move |m| (s, m)))
+            .collect();
+        let bar = cfg.progress.bar(njobs.len() as u64, "novelty maps");
+        let per = njobs
+            .par_iter()
+            .map(|&(s, m)| {
+                let r = run_novelty(&setups[s], m, cfg);
+                bar.inc(1);
+                r
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        bar.finish_and_clear();
+        novelty = per.into_iter().flatten().collect();
+        let mut a = [0.0; 3];
+        for (k, slot) in a.iter_mut().enumerate() {
+            let pts: Vec<(f64, bool)> = novelty.iter().map(|n| (n.score[k], n.novel)).collect();
+            *slot = auc(&pts);
+        }
+        auc_v = Some(a);
+    }
+    // Table 1 statistics on the test maps' ground truth.
+    let truths: Vec<Vec<ClassId>> = setups
+        .iter()
+        .flat_map(|s| s.maps.iter())
+        .map(map_truth)
+        .collect::<Result<_, _>>()
+        .map_err(|source| ReproduceError::Evidence {
+            map: "test maps".into(),
+            source,
+        })?;
+    let mut table1 = Vec::new();
+    if cfg.wrong_draw == WrongClassDraw::Others {
+        for &level in &cfg.levels {
+            let st: LevelStats = level_statistics(&truths, 10, level, cfg.rounds, cfg.seed)
+                .map_err(|source| ReproduceError::Evidence {
+                    map: "test maps".into(),
+                    source,
+                })?;
+            table1.push((
+                level.get(),
+                st.d_groundtruth.mean,
+                st.d_groundtruth.std,
+                st.d_incorrect.mean,
+                st.d_incorrect.std,
+            ));
+        }
+    }
+    let rep = Reproduction {
+        seed: cfg.seed,
+        paper_noise: cfg.wrong_draw == WrongClassDraw::AnyClass,
+        decompositions: (cfg.decomposition.count, cfg.decomposition.candidates),
+        training: cfg.training.to_value(),
+        evidence_exponent: cfg.evidence_exponent,
+        buildings: setups.iter().map(|s| s.info.clone()).collect(),
+        graphs,
+        novelty,
+        auc: auc_v,
+        table1,
+        seconds: 0.0,
+    };
+    Ok((rep, setups))
+}
