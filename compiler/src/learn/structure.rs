@@ -42,6 +42,27 @@ pub struct DenseParams {
     pub sums: usize,
     /// Balanced subset sizes (sizes differ by at most one; authors: true).
     pub balanced: bool,
+    /// Which random split a symmetric structure keeps (see [`SplitChoice`]);
+    /// ignored by [`dense_structure`].
+    pub split_choice: SplitChoice,
+}
+
+/// How [`symmetric_dense_structure`] picks a region's split among
+/// [`SPLIT_CANDIDATES`] random draws before closing it under the template's
+/// automorphisms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SplitChoice {
+    /// The split with the fewest images under the group: the smallest closed
+    /// structure (Star: `{P},{x,y},{z,w}`, 3 images, 3,750 weights with 10 classes).
+    /// The pivot then shares no subset with a neighbour, so its dependence on
+    /// the leaves is carried by the mixture only.
+    #[default]
+    FewestImages,
+    /// The split with the most images: every way of grouping variables appears
+    /// (Star: `{P,x},{y,z},{w}`, 12 images, 8,000 weights): the pivot gets a full
+    /// joint table with each neighbour, at about twice the evaluation cost.
+    MostImages,
 }
 
 impl Default for DenseParams {
@@ -51,6 +72,7 @@ impl Default for DenseParams {
             subsets: 3,
             sums: 5,
             balanced: true,
+            split_choice: SplitChoice::FewestImages,
         }
     }
 }
@@ -211,7 +233,11 @@ impl Builder<'_> {
                 for _ in 1..SPLIT_CANDIDATES {
                     let q = self.random_partition(&rep);
                     let size = self.orbit_size(&rep, &q);
-                    if size < best {
+                    let better = match self.params.split_choice {
+                        SplitChoice::FewestImages => size < best,
+                        SplitChoice::MostImages => size > best,
+                    };
+                    if better {
                         (p, best) = (q, size);
                     }
                 }
