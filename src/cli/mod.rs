@@ -1,4 +1,5 @@
 //! Sub-commands of the `graphspn` tool that have grown beyond a few lines, one file each.
 
 pub mod common;
+pub mod compile;
 pub mod train;
