@@ -58,6 +58,8 @@ enum Command {
     },
     /// Learn a model (one template SPN per sub-graph template) from annotated COLD maps.
     Train(cli::train::TrainArgs),
+    /// Compile the GraphSPN of a known map into a no_std Rust source file.
+    Compile(cli::compile::CompileArgs),
     /// Generate a synthetic office floor and save it as a JSON map.
     Generate {
         /// Number of places (10..=100000).
@@ -168,6 +170,7 @@ fn main() -> Result<()> {
             eprintln!("wrote {} ({} places)", out.display(), m.num_places());
         }
         Command::Train(args) => cli::train::run(args)?,
+        Command::Compile(args) => cli::compile::run(args)?,
         Command::Generate { places, seed, out } => {
             let m = synthetic(places, seed)?;
             m.save(&out)?;
