@@ -197,7 +197,11 @@ fn main() {
             "step {:>3} place {:>3} ({:>3} seen as {:>3}) ln S {:>8.2} | accuracy {:>5.1}% all, {:>5.1}% visited | uncertain {:>3} ({:.2}) {:>3} ({:.2}) {:>3} ({:.2}) | marginals p50 {:>6.1} µs p99 {:>6.1} µs",
             step,
             PLACE_IDS[place],
-            if truth == demo_floor::UNKNOWN { "?" } else { CLASS_NAMES[usize::from(truth)] },
+            if truth == demo_floor::UNKNOWN {
+                "?"
+            } else {
+                CLASS_NAMES[usize::from(truth)]
+            },
             CLASS_NAMES[seen],
             ll,
             100.0 * right as f64 / labelled.max(1) as f64,

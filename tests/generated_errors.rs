@@ -19,11 +19,18 @@ fn all_queries_fail(e: &Evidence, want: EvidenceError) {
     assert_eq!(demo_floor::mpe(e, &mut labels), Err(want));
     assert_eq!(demo_floor::labelled_log_likelihood(&unknown, e), Err(want));
     let msg = want.to_string();
-    if let EvidenceError::NotFinite { place, place_id, .. }
-    | EvidenceError::Negative { place, place_id, .. }
+    if let EvidenceError::NotFinite {
+        place, place_id, ..
+    }
+    | EvidenceError::Negative {
+        place, place_id, ..
+    }
     | EvidenceError::NoMass { place, place_id } = want
     {
-        assert!(msg.contains(&format!("place {place_id} (index {place})")), "{msg}");
+        assert!(
+            msg.contains(&format!("place {place_id} (index {place})")),
+            "{msg}"
+        );
     }
 }
 
@@ -52,7 +59,10 @@ fn nan_is_rejected_naming_the_place() {
 
 #[test]
 fn infinity_is_rejected_naming_the_place() {
-    for (p, v) in [(0, f32::INFINITY), (demo_floor::NUM_PLACES - 1, f32::NEG_INFINITY)] {
+    for (p, v) in [
+        (0, f32::INFINITY),
+        (demo_floor::NUM_PLACES - 1, f32::NEG_INFINITY),
+    ] {
         let mut e = ones();
         e[p][NUM_CLASSES - 1] = v;
         all_queries_fail(

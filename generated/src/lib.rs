@@ -31,5 +31,8 @@ pub mod saarbrucken_seq2_night1 {
 /// Ground truth of [`saarbrucken_seq2_night1`].
 #[cfg(graphspn_large)]
 pub mod saarbrucken_seq2_night1_truth {
-    include!(concat!(env!("OUT_DIR"), "/saarbrucken_seq2_night1_truth.rs"));
+    include!(concat!(
+        env!("OUT_DIR"),
+        "/saarbrucken_seq2_night1_truth.rs"
+    ));
 }

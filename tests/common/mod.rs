@@ -281,67 +281,69 @@ pub fn check_case(case: &Case, evs: &[Vec<Vec<f64>>], vals: &[f64]) {
         Precision::F64 => 1e-9,
     };
     let free = vec![None; n];
-    evs.par_iter()
-        .enumerate()
-        .for_each_init(
-            || eval.clone(),
-            |ev, (v, e)| {
-                let got = &vals[v * stride..(v + 1) * stride];
-                let ctx = || {
-                    format!(
-                        "map {} seed {} vector {v} (kind {}): evidence {e:?}",
-                        case.name,
-                        case.seed,
-                        v % 6
-                    )
-                };
-                let evidence = Evidence::from_rows(e.clone());
-                match ev.marginals(&free, &evidence) {
-                    Err(InferenceError::Evidence(EvidenceError::ZeroLikelihood)) => {
-                        assert!(got[0].is_nan() && got[1].is_nan(), "zero likelihood: {}", ctx());
-                    }
-                    Err(err) => panic!("interpreter: {err}: {}", ctx()),
-                    Ok(m) => {
-                        assert!(
-                            close(got[0], m.log_likelihood, tol),
-                            "log-likelihood {} vs {}: {}",
-                            got[0],
-                            m.log_likelihood,
-                            ctx()
-                        );
-                        for p in 0..n {
-                            for k in 0..c {
-                                let g = got[2 + n + p * c + k];
-                                assert!(
-                                    (g - m.probs[p][k]).abs() <= tol,
-                                    "marginal place {p} class {k}: {g} vs {}: {}",
-                                    m.probs[p][k],
-                                    ctx()
-                                );
-                            }
-                        }
-                        let mpe = ev.mpe(&free, &evidence).unwrap();
-                        assert!(
-                            close(got[1], mpe.log_max_product, tol),
-                            "mpe value {} vs {}: {}",
-                            got[1],
-                            mpe.log_max_product,
-                            ctx()
-                        );
-                        let labels: Vec<Option<u32>> =
-                            got[2..2 + n].iter().map(|&l| Some(l as u32)).collect();
-                        let attained = ev.mpe(&labels, &evidence).unwrap_or_else(|err| {
-                            panic!("generated mpe labels are impossible ({err}): {}", ctx())
-                        });
-                        assert!(
-                            close(attained.log_max_product, mpe.log_max_product, tol),
-                            "generated mpe labels attain {} not {}: {}",
-                            attained.log_max_product,
-                            mpe.log_max_product,
-                            ctx()
-                        );
-                    }
+    evs.par_iter().enumerate().for_each_init(
+        || eval.clone(),
+        |ev, (v, e)| {
+            let got = &vals[v * stride..(v + 1) * stride];
+            let ctx = || {
+                format!(
+                    "map {} seed {} vector {v} (kind {}): evidence {e:?}",
+                    case.name,
+                    case.seed,
+                    v % 6
+                )
+            };
+            let evidence = Evidence::from_rows(e.clone());
+            match ev.marginals(&free, &evidence) {
+                Err(InferenceError::Evidence(EvidenceError::ZeroLikelihood)) => {
+                    assert!(
+                        got[0].is_nan() && got[1].is_nan(),
+                        "zero likelihood: {}",
+                        ctx()
+                    );
                 }
-            },
-        );
+                Err(err) => panic!("interpreter: {err}: {}", ctx()),
+                Ok(m) => {
+                    assert!(
+                        close(got[0], m.log_likelihood, tol),
+                        "log-likelihood {} vs {}: {}",
+                        got[0],
+                        m.log_likelihood,
+                        ctx()
+                    );
+                    for p in 0..n {
+                        for k in 0..c {
+                            let g = got[2 + n + p * c + k];
+                            assert!(
+                                (g - m.probs[p][k]).abs() <= tol,
+                                "marginal place {p} class {k}: {g} vs {}: {}",
+                                m.probs[p][k],
+                                ctx()
+                            );
+                        }
+                    }
+                    let mpe = ev.mpe(&free, &evidence).unwrap();
+                    assert!(
+                        close(got[1], mpe.log_max_product, tol),
+                        "mpe value {} vs {}: {}",
+                        got[1],
+                        mpe.log_max_product,
+                        ctx()
+                    );
+                    let labels: Vec<Option<u32>> =
+                        got[2..2 + n].iter().map(|&l| Some(l as u32)).collect();
+                    let attained = ev.mpe(&labels, &evidence).unwrap_or_else(|err| {
+                        panic!("generated mpe labels are impossible ({err}): {}", ctx())
+                    });
+                    assert!(
+                        close(attained.log_max_product, mpe.log_max_product, tol),
+                        "generated mpe labels attain {} not {}: {}",
+                        attained.log_max_product,
+                        mpe.log_max_product,
+                        ctx()
+                    );
+                }
+            }
+        },
+    );
 }

@@ -325,16 +325,17 @@ impl Builder {
                 map_classes: map.classes.names().to_vec(),
             });
         }
-        let decompositions = match &self.decompositions {
-            DecSource::File(path) => load_decompositions(path, &map, &model)?,
-            DecSource::Given(d) => d.clone(),
-            DecSource::Seeded(params) => decompose_best(&map, &model.templates, params)
-                .map_err(|source| BuildError::Decompose {
-                    map: self.map.clone(),
-                    model: self.model.clone(),
-                    source,
-                })?,
-        };
+        let decompositions =
+            match &self.decompositions {
+                DecSource::File(path) => load_decompositions(path, &map, &model)?,
+                DecSource::Given(d) => d.clone(),
+                DecSource::Seeded(params) => decompose_best(&map, &model.templates, params)
+                    .map_err(|source| BuildError::Decompose {
+                        map: self.map.clone(),
+                        model: self.model.clone(),
+                        source,
+                    })?,
+            };
         Ok(Inputs {
             model,
             map,
@@ -380,7 +381,10 @@ impl Builder {
             return Ok(f.clone());
         }
         let name = &self.module_name;
-        let ident = name.chars().next().is_some_and(|c| c == '_' || c.is_ascii_alphabetic())
+        let ident = name
+            .chars()
+            .next()
+            .is_some_and(|c| c == '_' || c.is_ascii_alphabetic())
             && name.chars().all(|c| c == '_' || c.is_ascii_alphanumeric());
         if !ident {
             return Err(BuildError::BadOption(format!(
