@@ -11,7 +11,7 @@
 #![warn(missing_docs)]
 
 /// The demo office floor (80 places, 10 classes, 5 decompositions, `f32`).
-#[allow(missing_docs)]
+#[allow(missing_docs, clippy::all)]
 pub mod demo_floor {
     include!(concat!(env!("OUT_DIR"), "/demo_floor.rs"));
 }
@@ -23,7 +23,7 @@ pub mod demo_floor_truth {
 
 /// Saarbrücken `seq2_night1`, the largest COLD map (230 places, `f32`).
 #[cfg(graphspn_large)]
-#[allow(missing_docs)]
+#[allow(missing_docs, clippy::all)]
 pub mod saarbrucken_seq2_night1 {
     include!(concat!(env!("OUT_DIR"), "/saarbrucken_seq2_night1.rs"));
 }
