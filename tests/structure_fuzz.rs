@@ -1,5 +1,5 @@
 //! Structure fuzzing: random models (random templates via `Template::custom`, random
-//! class counts, random layered template SPNs with exact-zero and unnormalised
+//! class counts, random layered template SPNs with exact-zero and skewed
 //! weights) on random connected maps, compiled into one temporary crate, built, run
 //! and compared with the interpreter. Seeds are printed with every failure.
 //!
@@ -49,12 +49,12 @@ fn random_template(rng: &mut ChaCha8Rng, name: String, k: usize) -> Template {
     Template::custom(name, k, &edges).expect("a connected template")
 }
 
-/// A layered SPN with some sum weights set to exactly 0 (one positive kept) and,
-/// sometimes, every sum's weights scaled (unnormalised).
+/// A layered SPN with some sum weights set to exactly 0 (one positive kept; weights
+/// renormalised, as the interpreter requires), sometimes very skewed.
 fn random_template_spn(rng: &mut ChaCha8Rng, vars: usize, classes: u32) -> Spn {
     let mut spn = layered_spn(rng.random(), vars, classes, rng.random_range(1..=3));
     let zero_p = if rng.random_bool(0.5) { 0.25 } else { 0.0 };
-    let scale = rng.random_bool(0.3);
+    let skew = rng.random_bool(0.3);
     for node in spn.nodes.iter_mut() {
         if let Node::Sum { weights, .. } = node {
             let keep = rng.random_range(0..weights.len());
@@ -63,10 +63,11 @@ fn random_template_spn(rng: &mut ChaCha8Rng, vars: usize, classes: u32) -> Spn {
                     *w = 0.0;
                 }
             }
-            if scale {
-                let f = rng.random_range(0.2..5.0);
-                weights.iter_mut().for_each(|w| *w *= f);
+            if skew {
+                weights[keep] *= 1e6;
             }
+            let total: f64 = weights.iter().sum();
+            weights.iter_mut().for_each(|w| *w /= total);
         }
     }
     spn
