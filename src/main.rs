@@ -66,6 +66,8 @@ enum Command {
     /// Run the paper's experiments (classification, placeholders, novelty) and
     /// write REPORT.md, results.json and SVG figures.
     Reproduce(cli::reproduce::ReproduceArgs),
+    /// Compile the GraphSPN of a known map into a no_std Rust source file.
+    Compile(cli::compile::CompileArgs),
     /// Generate a synthetic office floor and save it as a JSON map.
     Generate {
         /// Number of places (10..=100000).
@@ -159,6 +161,7 @@ fn main() -> Result<()> {
         Command::Infer(args) => cli::infer::run(args)?,
         Command::Instance(args) => cli::instance::run(args)?,
         Command::Reproduce(args) => cli::reproduce::run_cmd(args)?,
+        Command::Compile(args) => cli::compile::run(args)?,
         Command::Generate { places, seed, out } => {
             let m = synthetic(places, seed)?;
             m.save(&out)?;

@@ -1,4 +1,38 @@
 //! Demo maps compiled by `graphspn` at build time: one module per map, each a
-//! straight-line, allocation-free evaluator of its instance GraphSPN.
+//! straight-line, allocation-free evaluator of its instance GraphSPN (see
+//! `demo/README.md` for where the maps and the model come from).
+//!
+//! - [`demo_floor`]: a synthetic 80-place office floor (`graphspn generate`), with the
+//!   model trained on all COLD buildings (`graphspn train`); [`demo_floor_truth`]
+//!   holds its annotated classes.
+//! - `saarbrucken_seq2_night1` (cfg `graphspn_large`): the largest COLD map, 230 places.
 #![no_std]
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+/// The demo office floor (80 places, 10 classes, 5 decompositions, `f32`).
+#[allow(missing_docs, clippy::all)]
+pub mod demo_floor {
+    include!(concat!(env!("OUT_DIR"), "/demo_floor.rs"));
+}
+
+/// Ground truth of [`demo_floor`].
+pub mod demo_floor_truth {
+    include!(concat!(env!("OUT_DIR"), "/demo_floor_truth.rs"));
+}
+
+/// Saarbrücken `seq2_night1`, the largest COLD map (230 places, `f32`).
+#[cfg(graphspn_large)]
+#[allow(missing_docs, clippy::all)]
+pub mod saarbrucken_seq2_night1 {
+    include!(concat!(env!("OUT_DIR"), "/saarbrucken_seq2_night1.rs"));
+}
+
+/// Ground truth of [`saarbrucken_seq2_night1`].
+#[cfg(graphspn_large)]
+pub mod saarbrucken_seq2_night1_truth {
+    include!(concat!(
+        env!("OUT_DIR"),
+        "/saarbrucken_seq2_night1_truth.rs"
+    ));
+}

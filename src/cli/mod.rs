@@ -4,4 +4,5 @@ pub mod common;
 pub mod infer;
 pub mod instance;
 pub mod reproduce;
+pub mod compile;
 pub mod train;

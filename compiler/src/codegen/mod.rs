@@ -24,7 +24,10 @@ mod emit;
 mod template;
 mod wiring;
 
-pub use builder::{Builder, compile, load_decompositions, load_map, load_model, write_if_changed};
+pub use builder::{
+    BuildError, Builder, GENERATED_MARKER, Inputs, compile, is_generated_file, load_decompositions,
+    load_map, load_model, write_if_changed,
+};
 
 use thiserror::Error;
 

@@ -1,0 +1,108 @@
+//! Generated code vs the interpreter (instance SPN, `Evaluator`) on the same map and
+//! evidence, for `log_likelihood` and `marginals`; prints the speed-up ratios
+//! measured in this run.
+//!
+//! `cargo bench --bench generated_vs_interpreter`
+//!
+//! The largest COLD map (Saarbrücken seq2_night1, 230 places) is benchmarked too once
+//! `graphspn-generated` compiles it: set `BUILD_LARGE = true` in `generated/build.rs`,
+//! then uncomment the `saarbrucken_seq2_night1` line in `main` below.
+// TODO(kernels): enable the 230-place map (see above).
+
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use criterion::Criterion;
+use graphspn::codegen::Builder;
+use graphspn::instance::Instance;
+use graphspn::interpreter::{Evaluator, Evidence};
+
+macro_rules! bench_map {
+    ($c:expr, $m:ident, $file:expr, $ratios:expr) => {{
+        use graphspn_generated::$m as g;
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo");
+        let inputs = Builder::new(dir.join("model.json"), dir.join($file))
+            .seed(0)
+            .count(5)
+            .load()
+            .expect("demo inputs");
+        assert_eq!(inputs.decompositions.len(), g::NUM_DECOMPOSITIONS);
+        let inst = Instance::build(&inputs.model, &inputs.map, inputs.decompositions).unwrap();
+        let mut eval = Evaluator::new(&inst.spn).unwrap();
+        // Deterministic, informative evidence.
+        let mut e: g::Evidence = [[0.0; g::NUM_CLASSES]; g::NUM_PLACES];
+        for (p, row) in e.iter_mut().enumerate() {
+            for (k, x) in row.iter_mut().enumerate() {
+                *x = 0.05 + ((p * 7 + k * 13) % 17) as f32 / 17.0;
+            }
+        }
+        let rows: Vec<Vec<f64>> = e
+            .iter()
+            .map(|r| r.iter().map(|&x| f64::from(x)).collect())
+            .collect();
+        let ev = Evidence::from_rows(rows);
+        let free = vec![None; g::NUM_PLACES];
+        let mut out: g::Marginals = [[0.0; g::NUM_CLASSES]; g::NUM_PLACES];
+        let name = stringify!($m);
+        let mut group = $c.benchmark_group(name);
+        group.bench_function("generated/log_likelihood", |b| {
+            b.iter(|| g::log_likelihood(black_box(&e)))
+        });
+        group.bench_function("interpreter/log_likelihood", |b| {
+            b.iter(|| eval.log_likelihood(&free, black_box(&ev)))
+        });
+        group.bench_function("generated/marginals", |b| {
+            b.iter(|| g::marginals(black_box(&e), &mut out))
+        });
+        group.bench_function("interpreter/marginals", |b| {
+            b.iter(|| eval.marginals(&free, black_box(&ev)))
+        });
+        group.finish();
+        // Ratios from one timing pass each, same process.
+        let time = |f: &mut dyn FnMut()| {
+            let start = Instant::now();
+            let mut n = 0u32;
+            while start.elapsed() < Duration::from_millis(300) {
+                f();
+                n += 1;
+            }
+            start.elapsed().as_secs_f64() / f64::from(n)
+        };
+        let gl = time(&mut || {
+            black_box(g::log_likelihood(black_box(&e)).ok());
+        });
+        let il = time(&mut || {
+            black_box(eval.log_likelihood(&free, &ev).ok());
+        });
+        let gm = time(&mut || {
+            black_box(g::marginals(black_box(&e), &mut out).ok());
+        });
+        let im = time(&mut || {
+            black_box(eval.marginals(&free, &ev).ok());
+        });
+        $ratios.push(format!(
+            "{name} ({} places, {} instance edges): log_likelihood {:.1} µs vs {:.1} µs ({:.1}x), marginals {:.1} µs vs {:.1} µs ({:.1}x)",
+            g::NUM_PLACES,
+            eval.num_edges(),
+            gl * 1e6,
+            il * 1e6,
+            il / gl,
+            gm * 1e6,
+            im * 1e6,
+            im / gm
+        ));
+    }};
+}
+
+fn main() {
+    let mut c = Criterion::default().configure_from_args();
+    let mut ratios: Vec<String> = Vec::new();
+    bench_map!(c, demo_floor, "floor.json", ratios);
+    // bench_map!(c, saarbrucken_seq2_night1, "saarbrucken_seq2_night1.json", ratios);
+    c.final_summary();
+    println!("generated vs interpreter (time per call, interpreter / generated):");
+    for r in &ratios {
+        println!("  {r}");
+    }
+}

@@ -1,0 +1,80 @@
+//! The build.rs builder: errors name the file and the problem; write-if-changed
+//! keeps the file untouched when nothing changed.
+
+use std::path::PathBuf;
+
+use graphspn::codegen::{BuildError, Builder};
+use graphspn::learn::Model;
+use graphspn::map::{ClassSet, TopoMap};
+
+fn demo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
+}
+
+#[test]
+fn missing_model_names_the_file() {
+    let err = Builder::new("/nonexistent/model.json", demo().join("floor.json"))
+        .generate()
+        .unwrap_err();
+    assert!(matches!(err, BuildError::Model { .. }), "{err}");
+    assert!(err.to_string().contains("/nonexistent/model.json"), "{err}");
+}
+
+#[test]
+fn class_sets_that_differ_are_reported_with_both_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut map = TopoMap::load(demo().join("floor.json")).unwrap();
+    let mut names = map.classes.names().to_vec();
+    names.swap(0, 1);
+    map.classes = ClassSet::new(names).unwrap();
+    let path = dir.path().join("swapped.json");
+    map.save(&path).unwrap();
+    let err = Builder::new(demo().join("model.json"), &path)
+        .generate()
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, BuildError::ClassesDiffer { .. }), "{msg}");
+    assert!(
+        msg.contains("model.json") && msg.contains("swapped.json"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn model_without_singleton_template_cannot_cover_every_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut model = Model::load(demo().join("model.json")).unwrap();
+    let keep: Vec<usize> = (0..model.templates.len())
+        .filter(|&t| model.templates[t].num_nodes > 1)
+        .collect();
+    model.templates = keep.iter().map(|&t| model.templates[t].clone()).collect();
+    model.spns = keep.iter().map(|&t| model.spns[t].clone()).collect();
+    let path = dir.path().join("no_singleton.json");
+    model.save(&path).unwrap();
+    let err = Builder::new(&path, demo().join("floor.json"))
+        .generate()
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, BuildError::Decompose { .. }), "{msg}");
+    assert!(
+        msg.contains("no_singleton.json") && msg.contains("floor.json"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn run_writes_only_when_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    let b = Builder::new(demo().join("model.json"), demo().join("floor.json"))
+        .count(2)
+        .module_name("floor")
+        .out_dir(dir.path())
+        .cargo_metadata(false);
+    let out = b.clone().run().unwrap();
+    let first = std::fs::metadata(&out).unwrap().modified().unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    b.clone().run().unwrap();
+    assert_eq!(std::fs::metadata(&out).unwrap().modified().unwrap(), first);
+    let bad = b.module_name("not an ident").run().unwrap_err();
+    assert!(matches!(bad, BuildError::BadOption(_)), "{bad}");
+}

@@ -1,0 +1,64 @@
+//! The generated crate is `no_std` without `alloc`, and the generated code has no
+//! `unsafe` and no panicking constructs. `graphspn-generated` is `#![no_std]` and
+//! `#![forbid(unsafe_code)]`, so std or alloc could only come in through an
+//! `extern crate` in the included, generated text: this test regenerates that text
+//! (same inputs as `generated/build.rs`, f32 and f64) and scans it.
+
+use std::path::PathBuf;
+
+use graphspn::codegen::{Builder, Precision, is_generated_file};
+
+fn demo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
+}
+
+#[test]
+fn generated_crate_is_no_std_without_alloc_unsafe_or_panics() {
+    let lib = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/src/lib.rs"),
+    )
+    .unwrap();
+    assert!(lib.contains("#![no_std]") && lib.contains("#![forbid(unsafe_code)]"));
+    assert!(!lib.contains("extern crate"));
+    for precision in [Precision::F32, Precision::F64] {
+        let src = Builder::new(demo().join("model.json"), demo().join("floor.json"))
+            .seed(0)
+            .count(5)
+            .precision(precision)
+            .generate()
+            .unwrap();
+        assert!(is_generated_file(&src));
+        let scalar = match precision {
+            Precision::F32 => "pub type Evidence = [[f32; NUM_CLASSES]; NUM_PLACES];",
+            Precision::F64 => "pub type Evidence = [[f64; NUM_CLASSES]; NUM_PLACES];",
+        };
+        assert!(src.contains(scalar), "{precision:?} evidence type");
+        for banned in [
+            "extern crate",
+            "std::",
+            "alloc::",
+            "Vec<",
+            "Box<",
+            "unsafe",
+            "panic!",
+            "unwrap(",
+            "expect(",
+            "unreachable!",
+            "todo!",
+            "assert",
+        ] {
+            assert!(
+                !src.contains(banned),
+                "{precision:?}: generated code contains {banned:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn same_inputs_give_byte_identical_output() {
+    let b = Builder::new(demo().join("model.json"), demo().join("floor.json"))
+        .seed(3)
+        .count(4);
+    assert_eq!(b.generate().unwrap(), b.clone().generate().unwrap());
+}

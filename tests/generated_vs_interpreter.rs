@@ -1,0 +1,188 @@
+//! Differential tests: generated code against the interpreter evaluating the
+//! instance GraphSPN, on the demo map (in process, through `graphspn-generated`)
+//! and on real COLD maps (compiled into one temporary crate). Seeds are printed.
+//!
+//! Scale up (see README "Tests"):
+//! - `GRAPHSPN_MAX_PLACES=N`: compile COLD maps up to N places (default [`MAX_PLACES`]);
+//! - `GRAPHSPN_ALL_MAPS=1`: all 90 COLD maps, no size cap;
+//! - `GRAPHSPN_DIFF_VECTORS=N`: evidence vectors per map (default [`VECTORS`]).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{Case, case_evidence, check_case, differential};
+use graphspn::codegen::{Builder, Precision};
+use graphspn::decompose::{DecompositionParams, decompose_best};
+use graphspn::learn::Model;
+use graphspn::map::cold;
+use graphspn_generated::demo_floor;
+
+/// Largest COLD map compiled by default.
+// TODO(kernels): set to usize::MAX once a 230-place map builds in seconds.
+const MAX_PLACES: usize = 60;
+/// Evidence vectors per map.
+const VECTORS: usize = 10_000;
+
+/// The COLD maps tested by default (the largest, Saarbrücken seq2_night1, included),
+/// subject to [`MAX_PLACES`].
+const COLD_MAPS: &[&str] = &[
+    "Saarbrucken/seq3_cloudy1",
+    "Saarbrucken/seq3_night2",
+    "Saarbrucken/seq1_cloudy2",
+    "Saarbrucken/seq4_night3",
+    "Saarbrucken/seq2_night1",
+    "Freiburg/seq1_cloudy1",
+    "Freiburg/seq2_sunny1",
+    "Freiburg/seq3_cloudy1",
+    "Stockholm/floor4_cloudy_a1",
+    "Stockholm/floor5_cloudy_b",
+];
+
+fn env_usize(name: &str, default: usize) -> usize {
+    std::env::var(name)
+        .ok()
+        .map(|v| {
+            v.parse()
+                .unwrap_or_else(|_| panic!("{name}={v} is not a number"))
+        })
+        .unwrap_or(default)
+}
+
+fn demo_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
+}
+
+fn demo_model() -> Model {
+    Model::load(demo_dir().join("model.json")).unwrap()
+}
+
+#[test]
+fn demo_floor_matches_interpreter() {
+    // The same inputs and decomposition settings as generated/build.rs.
+    let inputs = Builder::new(demo_dir().join("model.json"), demo_dir().join("floor.json"))
+        .seed(0)
+        .count(5)
+        .load()
+        .unwrap();
+    assert_eq!(inputs.decompositions.len(), demo_floor::NUM_DECOMPOSITIONS);
+    assert_eq!(inputs.map.num_places(), demo_floor::NUM_PLACES);
+    let ids: Vec<u32> = inputs.map.places().map(|p| p.id).collect();
+    assert_eq!(ids, demo_floor::PLACE_IDS);
+    let case = Case {
+        name: "demo_floor".into(),
+        model: inputs.model,
+        map: inputs.map,
+        decs: inputs.decompositions,
+        precision: Precision::F32,
+        vectors: env_usize("GRAPHSPN_DIFF_VECTORS", VECTORS),
+        seed: 1,
+    };
+    let evs = case_evidence(&case);
+    let (n, c) = (demo_floor::NUM_PLACES, demo_floor::NUM_CLASSES);
+    let mut vals = Vec::with_capacity(evs.len() * (2 + n + n * c));
+    let mut e: demo_floor::Evidence = [[0.0; demo_floor::NUM_CLASSES]; demo_floor::NUM_PLACES];
+    let mut marg = e;
+    let mut lab = [0u16; demo_floor::NUM_PLACES];
+    for ev in &evs {
+        for (row, src) in e.iter_mut().zip(ev) {
+            for (x, &s) in row.iter_mut().zip(src) {
+                *x = s as f32;
+            }
+        }
+        let ll = demo_floor::log_likelihood(&e).map_or(f64::NAN, f64::from);
+        let mv = demo_floor::mpe(&e, &mut lab).map_or(f64::NAN, f64::from);
+        let _ = demo_floor::marginals(&e, &mut marg);
+        vals.push(ll);
+        vals.push(mv);
+        vals.extend(lab.iter().map(|&l| f64::from(l)));
+        vals.extend(marg.iter().flatten().map(|&x| f64::from(x)));
+    }
+    check_case(&case, &evs, &vals);
+    eprintln!(
+        "demo_floor: {} vectors (seed {}) agree with the interpreter",
+        evs.len(),
+        case.seed
+    );
+}
+
+#[test]
+fn cold_maps_match_interpreter() {
+    let Some(data) = std::env::var_os("GRAPHSPN_DATA").map(PathBuf::from) else {
+        eprintln!("GRAPHSPN_DATA is not set: skipping the COLD maps");
+        return;
+    };
+    assert!(
+        data.is_dir(),
+        "GRAPHSPN_DATA={} is not a folder",
+        data.display()
+    );
+    let all = std::env::var_os("GRAPHSPN_ALL_MAPS").is_some();
+    let cap = if all {
+        usize::MAX
+    } else {
+        env_usize("GRAPHSPN_MAX_PLACES", MAX_PLACES)
+    };
+    let vectors = env_usize("GRAPHSPN_DIFF_VECTORS", VECTORS);
+    let model = demo_model();
+    let mut paths: Vec<PathBuf> = Vec::new();
+    if all {
+        for b in cold::BUILDINGS {
+            paths.extend(cold::sequence_dirs(data.join(b)).unwrap());
+        }
+    } else {
+        paths.extend(COLD_MAPS.iter().map(|m| data.join(m)));
+    }
+    let mut cases = Vec::new();
+    for (i, path) in paths.iter().enumerate() {
+        let map = cold::load_sequence(path).unwrap_or_else(|e| panic!("{e}"));
+        if map.num_places() > cap {
+            eprintln!(
+                "{}: {} places > {cap}, not compiled (raise GRAPHSPN_MAX_PLACES)",
+                path.display(),
+                map.num_places()
+            );
+            continue;
+        }
+        let seed = 100 + i as u64;
+        let decs = decompose_best(
+            &map,
+            &model.templates,
+            &DecompositionParams {
+                seed,
+                ..DecompositionParams::default()
+            },
+        )
+        .unwrap();
+        // The first compiled map is also checked in f64.
+        let precisions: &[Precision] = if cases.is_empty() {
+            &[Precision::F32, Precision::F64]
+        } else {
+            &[Precision::F32]
+        };
+        for &precision in precisions {
+            cases.push(Case {
+                name: format!("{}_{precision:?}", module_name(path)).to_lowercase(),
+                model: model.clone(),
+                map: map.clone(),
+                decs: decs.clone(),
+                precision,
+                vectors,
+                seed,
+            });
+        }
+    }
+    assert!(!cases.is_empty(), "no COLD map under the size cap {cap}");
+    differential("cold_diff", &cases);
+}
+
+fn module_name(path: &Path) -> String {
+    let mut parts: Vec<String> = path
+        .components()
+        .rev()
+        .take(2)
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    parts.reverse();
+    parts.join("_")
+}
