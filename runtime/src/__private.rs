@@ -377,7 +377,7 @@ fn axmax_arg<R: Real>(y: &mut [R], arg: &mut [u16], idx: u16, s: R, x: &[R]) {
 }
 
 /// `out[m] += Σ_i w[m][i]·a[i]`.
-#[inline(always)]
+#[inline(never)]
 pub fn d1_fwd<R: Real, const M: usize, const A: usize>(
     w: &[[R; A]; M],
     a: &[R; A],
@@ -389,7 +389,7 @@ pub fn d1_fwd<R: Real, const M: usize, const A: usize>(
 }
 
 /// Adjoint of [`d1_fwd`]: `ga[i] += Σ_m g[m]·w[m][i]`.
-#[inline(always)]
+#[inline(never)]
 pub fn d1_bwd<R: Real, const M: usize, const A: usize>(
     w: &[[R; A]; M],
     g: &[R; M],
@@ -401,7 +401,7 @@ pub fn d1_bwd<R: Real, const M: usize, const A: usize>(
 }
 
 /// `out[m] = max(out[m], max_i w[m][i]·a[i])`.
-#[inline(always)]
+#[inline(never)]
 pub fn d1_max<R: Real, const M: usize, const A: usize>(
     w: &[[R; A]; M],
     a: &[R; A],
@@ -418,7 +418,7 @@ pub fn d1_max<R: Real, const M: usize, const A: usize>(
 }
 
 /// [`d1_max`] that records `[seg, i, 0, 0]` in `arg[m]` where `out[m]` grew.
-#[inline(always)]
+#[inline(never)]
 pub fn d1_maxa<R: Real, const M: usize, const A: usize>(
     seg: u16,
     w: &[[R; A]; M],
@@ -461,7 +461,7 @@ fn mark<const A: usize>(s: &mut [bool; A], i: u16) {
 
 /// Forward of a two-input block keeping the intermediate `u[m][i] = Σ_j w[j][m][i]·b[j]`
 /// for [`d2_bwd`]; `out[m] += Σ_i u[m][i]·a[i]`.
-#[inline(always)]
+#[inline(never)]
 pub fn d2_fwdk<R: Real, const M: usize, const A: usize, const B: usize>(
     w: &[[[R; A]; M]; B],
     a: &[R; A],
@@ -479,7 +479,7 @@ pub fn d2_fwdk<R: Real, const M: usize, const A: usize, const B: usize>(
 }
 
 /// `out[m] += Σ_{i,j} w[j][m][i]·a[i]·b[j]`.
-#[inline(always)]
+#[inline(never)]
 pub fn d2_fwd<R: Real, const M: usize, const A: usize, const B: usize>(
     w: &[[[R; A]; M]; B],
     a: &[R; A],
@@ -491,7 +491,7 @@ pub fn d2_fwd<R: Real, const M: usize, const A: usize, const B: usize>(
 }
 
 /// Adjoints of [`d2_fwdk`] for output adjoint `g`.
-#[inline(always)]
+#[inline(never)]
 pub fn d2_bwd<R: Real, const M: usize, const A: usize, const B: usize>(
     w: &[[[R; A]; M]; B],
     a: &[R; A],
@@ -512,7 +512,7 @@ pub fn d2_bwd<R: Real, const M: usize, const A: usize, const B: usize>(
 }
 
 /// `out[m] = max(out[m], max_{i,j} w[j][m][i]·a[i]·b[j])`.
-#[inline(always)]
+#[inline(never)]
 pub fn d2_max<R: Real, const M: usize, const A: usize, const B: usize>(
     w: &[[[R; A]; M]; B],
     a: &[R; A],
@@ -535,7 +535,7 @@ pub fn d2_max<R: Real, const M: usize, const A: usize, const B: usize>(
 }
 
 /// [`d2_max`] recording the best `[seg, i, j, 0]` in `arg[m]` where `out[m]` grew.
-#[inline(always)]
+#[inline(never)]
 pub fn d2_maxa<R: Real, const M: usize, const A: usize, const B: usize>(
     seg: u16,
     w: &[[[R; A]; M]; B],
@@ -589,7 +589,7 @@ pub fn d2_back<const M: usize, const A: usize, const B: usize>(
 
 /// Forward of a three-input block keeping `u[j][m][i] = Σ_k w[k][j][m][i]·c[k]` and
 /// `v[m][i] = Σ_j u[j][m][i]·b[j]` for [`d3_bwd`]; `out[m] += Σ_i v[m][i]·a[i]`.
-#[inline(always)]
+#[inline(never)]
 pub fn d3_fwdk<R: Real, const M: usize, const A: usize, const B: usize, const K: usize>(
     w: &[[[[R; A]; M]; B]; K],
     a: &[R; A],
@@ -615,7 +615,7 @@ pub fn d3_fwdk<R: Real, const M: usize, const A: usize, const B: usize, const K:
 }
 
 /// `out[m] += Σ_{i,j,k} w[k][j][m][i]·a[i]·b[j]·c[k]`.
-#[inline(always)]
+#[inline(never)]
 pub fn d3_fwd<R: Real, const M: usize, const A: usize, const B: usize, const K: usize>(
     w: &[[[[R; A]; M]; B]; K],
     a: &[R; A],
@@ -630,7 +630,7 @@ pub fn d3_fwd<R: Real, const M: usize, const A: usize, const B: usize, const K: 
 
 /// Adjoints of [`d3_fwdk`] for output adjoint `g`.
 #[allow(clippy::too_many_arguments)]
-#[inline(always)]
+#[inline(never)]
 pub fn d3_bwd<R: Real, const M: usize, const A: usize, const B: usize, const K: usize>(
     w: &[[[[R; A]; M]; B]; K],
     a: &[R; A],
@@ -660,7 +660,7 @@ pub fn d3_bwd<R: Real, const M: usize, const A: usize, const B: usize, const K: 
 }
 
 /// `out[m] = max(out[m], max_{i,j,k} w[k][j][m][i]·a[i]·b[j]·c[k])`.
-#[inline(always)]
+#[inline(never)]
 pub fn d3_max<R: Real, const M: usize, const A: usize, const B: usize, const K: usize>(
     w: &[[[[R; A]; M]; B]; K],
     a: &[R; A],
@@ -694,7 +694,7 @@ pub fn d3_max<R: Real, const M: usize, const A: usize, const B: usize, const K: 
 
 /// [`d3_max`] recording the best `[seg, i, j, k]` in `arg[m]` where `out[m]` grew.
 #[allow(clippy::too_many_arguments)]
-#[inline(always)]
+#[inline(never)]
 pub fn d3_maxa<R: Real, const M: usize, const A: usize, const B: usize, const K: usize>(
     seg: u16,
     w: &[[[[R; A]; M]; B]; K],
