@@ -30,6 +30,7 @@ use graphspn_compiler::map::TopoMap;
 use graphspn_compiler::map::synthetic::{SyntheticParams, generate as synth};
 
 const MAIN: &str = r#"
+#[allow(dead_code)]
 mod m { include!("m.rs"); }
 fn main() {
     let mut e = Box::new([[0.0f32; m::NUM_CLASSES]; m::NUM_PLACES]);
