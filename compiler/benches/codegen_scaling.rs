@@ -1,10 +1,18 @@
-//! Code size, release build time and run time of generated code as maps grow.
+//! Code size, release build time and run time of generated code as maps grow, and the
+//! speed-up over the interpreter on the largest COLD map.
 //!
-//! Dense paper-sized model (10 classes: Pair 10×10 table, Three 10×10×10 table,
-//! Star split {2,2,1} with 5 sums per subset, uniform Singleton; random weights) on
-//! grid maps of about 100, 230, 1,000 and 10,000 places with 5 random decompositions.
-//! Run: `cargo bench -p graphspn-compiler --bench codegen_scaling` (set
-//! `CODEGEN_SIZES=100,230` to choose sizes).
+//! Model: `$GRAPHSPN_MODEL`, else `/work/briefs/model_fs.json` when it exists, else a
+//! dense model with the trained structure (symmetric Star/Three/Pair with the authors'
+//! parameters, random weights, 10 classes). Maps: synthetic office floors
+//! (`map::synthetic`) of about 100, 1,000 and 10,000 places (`CODEGEN_SIZES` to
+//! choose), plus Saarbrucken's largest COLD map when `GRAPHSPN_DATA` is set; each with 5
+//! decompositions from the real decomposer (`decompose_best`, 15 candidates).
+//! For every map a crate holding just the generated module is built in release mode
+//! (`target/codegen-bench`, the runtime prebuilt so the time is the module's own) and
+//! run; the interpreter's marginals on the same instance SPN and evidence are timed in
+//! this process. `CODEGEN_NO_BUILD=1` only generates; `CODEGEN_KEEP=1` keeps the sources.
+//!
+//! Run: `cargo bench -p graphspn-compiler --bench codegen_scaling`.
 
 #[path = "../tests/codegen_common/mod.rs"]
 mod common;
@@ -14,125 +22,15 @@ use std::process::Command;
 use std::time::Instant;
 
 use graphspn_compiler::codegen::{CodegenOptions, generate};
-use graphspn_compiler::spn::{Node, NodeId, Spn};
-use graphspn_compiler::template::Template;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-
-const C: usize = 10;
-
-fn weights(rng: &mut ChaCha8Rng, k: usize) -> Vec<f64> {
-    let w: Vec<f64> = (0..k).map(|_| rng.random_range(0.05..1.0)).collect();
-    let s: f64 = w.iter().sum();
-    w.iter().map(|x| x / s).collect()
-}
-
-/// Leaves for `n` vars at ids `v*C + c`.
-fn leaves(n: usize) -> Vec<Node> {
-    (0..n)
-        .flat_map(|v| {
-            (0..C).map(move |c| Node::Leaf {
-                var: v as u32,
-                class: c as u32,
-            })
-        })
-        .collect()
-}
-
-/// Full table over `vars`: products of one leaf per var, returns product ids.
-fn table(nodes: &mut Vec<Node>, vars: &[usize]) -> Vec<NodeId> {
-    let mut ids: Vec<Vec<NodeId>> = vec![vec![]];
-    for &v in vars {
-        ids = ids
-            .into_iter()
-            .flat_map(|p| {
-                (0..C).map(move |c| {
-                    let mut q = p.clone();
-                    q.push((v * C + c) as NodeId);
-                    q
-                })
-            })
-            .collect();
-    }
-    ids.into_iter()
-        .map(|children| {
-            nodes.push(Node::Product { children });
-            (nodes.len() - 1) as NodeId
-        })
-        .collect()
-}
-
-fn root_sum(rng: &mut ChaCha8Rng, nodes: &mut Vec<Node>, children: Vec<NodeId>) -> NodeId {
-    let w = weights(rng, children.len());
-    nodes.push(Node::Sum {
-        children,
-        weights: w,
-    });
-    (nodes.len() - 1) as NodeId
-}
-
-fn dense_model(seed: u64) -> graphspn_compiler::learn::Model {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    // Star {P,A} {B,C} {D}
-    let mut nodes = leaves(5);
-    let mut groups: Vec<Vec<NodeId>> = vec![];
-    for vars in [&[0usize, 1][..], &[2, 3]] {
-        let prods = table(&mut nodes, vars);
-        groups.push(
-            (0..5)
-                .map(|_| root_sum(&mut rng, &mut nodes, prods.clone()))
-                .collect(),
-        );
-    }
-    let d_leaves: Vec<NodeId> = (0..C).map(|c| (4 * C + c) as NodeId).collect();
-    groups.push(
-        (0..5)
-            .map(|_| root_sum(&mut rng, &mut nodes, d_leaves.clone()))
-            .collect(),
-    );
-    let mut prods = vec![];
-    for &a in &groups[0] {
-        for &b in &groups[1] {
-            for &c in &groups[2] {
-                nodes.push(Node::Product {
-                    children: vec![a, b, c],
-                });
-                prods.push((nodes.len() - 1) as NodeId);
-            }
-        }
-    }
-    let root = root_sum(&mut rng, &mut nodes, prods);
-    let star = Spn {
-        classes: vec![C as u32; 5],
-        nodes,
-        root,
-    };
-    let mut spns = vec![star];
-    for n in [3usize, 2] {
-        let mut nodes = leaves(n);
-        let vars: Vec<usize> = (0..n).collect();
-        let prods = table(&mut nodes, &vars);
-        let root = root_sum(&mut rng, &mut nodes, prods);
-        spns.push(Spn {
-            classes: vec![C as u32; n],
-            nodes,
-            root,
-        });
-    }
-    let mut nodes = leaves(1);
-    nodes.push(Node::Sum {
-        children: (0..C as u32).collect(),
-        weights: vec![0.1; C],
-    });
-    spns.push(Spn {
-        classes: vec![C as u32],
-        nodes,
-        root: C as NodeId,
-    });
-    common::model(C, Template::paper_set(), spns)
-}
+use graphspn_compiler::decompose::{DecompositionParams, decompose_best};
+use graphspn_compiler::instance::Instance;
+use graphspn_compiler::interpreter::{Evaluator, Evidence};
+use graphspn_compiler::learn::Model;
+use graphspn_compiler::map::TopoMap;
+use graphspn_compiler::map::synthetic::{SyntheticParams, generate as synth};
 
 const MAIN: &str = r#"
+#[allow(dead_code)]
 mod m { include!("m.rs"); }
 fn main() {
     let mut e = Box::new([[0.0f32; m::NUM_CLASSES]; m::NUM_PLACES]);
@@ -145,7 +43,7 @@ fn main() {
     }
     let mut out = Box::new([[0.0f32; m::NUM_CLASSES]; m::NUM_PLACES]);
     let mut lab = Box::new([0u16; m::NUM_PLACES]);
-    let iters = (1_000_000 / m::NUM_PLACES).max(3);
+    let iters = (2_000_000 / m::NUM_PLACES).max(5);
     let t = std::time::Instant::now();
     let mut acc = 0.0f32;
     for _ in 0..iters { acc += m::log_likelihood(std::hint::black_box(&e)).unwrap(); }
@@ -156,46 +54,124 @@ fn main() {
     let t = std::time::Instant::now();
     for _ in 0..iters { acc += m::mpe(std::hint::black_box(&e), &mut lab).unwrap(); }
     let mp = t.elapsed().as_secs_f64() / iters as f64;
-    println!("{:.1} {:.1} {:.1} {}", ll * 1e6, mg * 1e6, mp * 1e6, acc);
+    println!("{:.1} {:.1} {:.1} {} {:e}", ll * 1e6, mg * 1e6, mp * 1e6, acc, out[0][0]);
 }
 "#;
 
-fn main() {
+/// The evidence `MAIN` builds, in `f64`.
+fn evidence(n: usize, c: usize) -> Vec<Vec<f64>> {
+    let mut s = 12345u64;
+    (0..n)
+        .map(|_| {
+            (0..c)
+                .map(|_| {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    f64::from(((s >> 40) as f32 / (1u64 << 24) as f32) + 1e-3)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn load_model() -> (Model, String) {
+    let path =
+        std::env::var("GRAPHSPN_MODEL").unwrap_or_else(|_| "/work/briefs/model_fs.json".into());
+    match Model::load(&path) {
+        Ok(m) => (m, path),
+        Err(_) => (
+            common::dense_model(10, true, 1, 1),
+            "dense model (trained structure, random weights)".into(),
+        ),
+    }
+}
+
+fn maps(model: &Model) -> Vec<(String, TopoMap)> {
     let sizes: Vec<usize> = std::env::var("CODEGEN_SIZES")
-        .unwrap_or_else(|_| "100,230,1000,10000".into())
+        .unwrap_or_else(|_| "100,1000,10000".into())
         .split(',')
         .filter_map(|s| s.trim().parse().ok())
         .collect();
-    let model = dense_model(1);
+    let mut out = vec![];
+    if let Some(data) = std::env::var_os("GRAPHSPN_DATA") {
+        let maps = graphspn_compiler::map::cold::load_building(&data, "Saarbrucken")
+            .expect("GRAPHSPN_DATA is set but Saarbrucken does not load");
+        let big = maps
+            .into_iter()
+            .max_by_key(|m| m.num_places())
+            .expect("Saarbrucken has maps");
+        out.push((format!("cold:{}", big.name), big));
+    }
+    for n in sizes {
+        let mut map = synth(&SyntheticParams::new(n, 1)).expect("synthetic map");
+        map.classes = model.classes.clone();
+        out.push((format!("synthetic {n}"), map));
+    }
+    out
+}
+
+fn main() {
+    let (model, label) = load_model();
+    println!("model: {label}");
     let target = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/codegen-bench");
     let runtime = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../runtime")
         .canonicalize()
         .expect("runtime folder");
     println!(
-        "places | components | gen ms | source KB | build s | binary KB | ll µs | marginals µs | mpe µs"
+        "map | places | unique comps | gen ms | source KB | build s | ll µs | marginals µs | mpe µs | interp marginals µs | speed-up"
     );
-    for n in sizes {
-        let w = (n as f64).sqrt().round() as usize;
-        let h = n.div_ceil(w);
-        let map = common::grid(w, h, C);
-        let decs: Vec<_> = (0..5)
-            .map(|s| common::decompose(&map, &model.templates, s))
-            .collect();
-        let comps: usize = decs.iter().map(|d| d.components.len()).sum();
+    for (name, map) in maps(&model) {
+        let decs = decompose_best(
+            &map,
+            &model.templates,
+            &DecompositionParams {
+                count: 5,
+                candidates: 15,
+                seed: 1,
+            },
+        )
+        .expect("decompose");
+        let mut uniq: Vec<_> = decs.iter().flat_map(|d| d.components.iter()).collect();
+        uniq.sort_by(|a, b| (a.template, &a.places).cmp(&(b.template, &b.places)));
+        uniq.dedup_by(|a, b| a.template == b.template && a.places == b.places);
         let t = Instant::now();
-        let src = generate(&model, &map, &decs, &CodegenOptions::default()).expect("generate");
+        let opts = CodegenOptions {
+            model_label: label.clone(),
+            ..Default::default()
+        };
+        let src = generate(&model, &map, &decs, &opts).expect("generate");
         let gen_ms = t.elapsed().as_secs_f64() * 1e3;
+        let n = map.num_places();
+        // The interpreter on the same instance and evidence (in-process).
+        let interp_us = if n <= 2000 {
+            let inst = Instance::build(&model, &map, decs.clone()).expect("instance");
+            let mut ev = Evaluator::new(&inst.spn).expect("evaluator");
+            let e = Evidence::from_rows(evidence(n, model.classes.len()));
+            let fixed = vec![None; n];
+            let _ = ev.marginals(&fixed, &e).expect("interpreter");
+            let iters = 5;
+            let t = Instant::now();
+            for _ in 0..iters {
+                std::hint::black_box(ev.marginals(&fixed, &e).expect("interpreter"));
+            }
+            Some(t.elapsed().as_secs_f64() / iters as f64 * 1e6)
+        } else {
+            None
+        };
         if std::env::var_os("CODEGEN_KEEP").is_some() {
             let _ = std::fs::create_dir_all(&target);
             let _ = std::fs::write(target.join(format!("m_{n}.rs")), &src);
         }
+        let row = format!(
+            "{name} | {n} | {} | {gen_ms:.0} | {}",
+            uniq.len(),
+            src.len() / 1024
+        );
+        let interp = interp_us.map_or("-".to_string(), |v| format!("{v:.0}"));
         if std::env::var_os("CODEGEN_NO_BUILD").is_some() {
-            println!(
-                "{} | {comps} | {gen_ms:.0} | {} | - | - | - | - | -",
-                map.num_places(),
-                src.len() / 1024
-            );
+            println!("{row} | - | - | - | - | {interp} | -");
             continue;
         }
         let dir = tempfile::tempdir().expect("tempdir");
@@ -231,16 +207,19 @@ fn main() {
             .status()
             .expect("cargo");
         let build_s = t.elapsed().as_secs_f64();
-        assert!(st.success());
-        let bin = target.join("release/codegen-bench");
-        let bin_kb = std::fs::metadata(&bin).expect("binary").len() / 1024;
-        let out = Command::new(&bin).output().expect("run");
+        assert!(st.success(), "generated crate failed to build");
+        let out = Command::new(target.join("release/codegen-bench"))
+            .output()
+            .expect("run");
         let times = String::from_utf8_lossy(&out.stdout).to_string();
         let t: Vec<&str> = times.split_whitespace().collect();
+        let mg: Option<f64> = t.get(1).and_then(|s| s.parse().ok());
+        let ratio = match (interp_us, mg) {
+            (Some(i), Some(g)) if g > 0.0 => format!("{:.0}×", i / g),
+            _ => "-".into(),
+        };
         println!(
-            "{} | {comps} | {gen_ms:.0} | {} | {build_s:.1} | {bin_kb} | {} | {} | {}",
-            map.num_places(),
-            src.len() / 1024,
+            "{row} | {build_s:.1} | {} | {} | {} | {interp} | {ratio}",
             t.first().unwrap_or(&"?"),
             t.get(1).unwrap_or(&"?"),
             t.get(2).unwrap_or(&"?")

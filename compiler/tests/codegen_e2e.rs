@@ -127,6 +127,34 @@ fn cases() -> Vec<Case> {
         precision: Precision::F32,
         chunk: 2,
     });
+    // The real model structure (dense region blocks → the dense kernels): symmetric
+    // Star/Three/Pair as trained by default, and plain dense ones with two random splits
+    // per region (blocks with several segments of different shapes).
+    for (name, symmetric, splits, precision, seed) in [
+        ("dense_sym", true, 1, Precision::F32, 5u64),
+        ("dense_sym64", true, 1, Precision::F64, 6),
+        ("dense_split2", false, 2, Precision::F32, 7),
+        ("dense_split3_64", false, 3, Precision::F64, 8),
+    ] {
+        let m = dense_model(3, symmetric, splits, seed);
+        // A star around 0 with a tail: room for Star, Three, Pair and Singleton.
+        let g = map(
+            7,
+            3,
+            &[(0, 1), (0, 2), (0, 3), (0, 4), (4, 5), (5, 6), (1, 2)],
+        );
+        let decs: Vec<_> = (0..3)
+            .map(|s| decompose(&g, &m.templates, seed + s))
+            .collect();
+        out.push(Case {
+            name: name.into(),
+            model: m,
+            map: g,
+            decs,
+            precision,
+            chunk: 3,
+        });
+    }
     out
 }
 

@@ -135,3 +135,34 @@ fn bad_inputs_are_reported() {
         Err(CodegenError::EmptyMap)
     ));
 }
+
+#[test]
+fn dense_structures_use_kernels_and_stay_small() {
+    for (symmetric, splits) in [(true, 1), (false, 2)] {
+        let m = dense_model(10, symmetric, splits, 11);
+        let g = grid(4, 3, 10);
+        let decs: Vec<_> = (0..3).map(|s| decompose(&g, &m.templates, s)).collect();
+        let src = generate(&m, &g, &decs, &CodegenOptions::default()).unwrap();
+        // Every Star/Three/Pair template becomes block kernels, not per-node code.
+        for k in [
+            "d3_fwd", "d3_fwdk", "d3_bwd", "d3_max", "d3_maxa", "d3_back", "d2_fwd",
+        ] {
+            assert!(src.contains(k), "no {k} in the generated code");
+        }
+        assert!(
+            !src.contains("let n1 = x[0]"),
+            "per-node fallback used for a dense template"
+        );
+        // Weights dominate: a few bytes of text per weight plus a small constant.
+        let weights: usize = m
+            .spns
+            .iter()
+            .map(graphspn_compiler::learn::structure::num_weights)
+            .sum();
+        assert!(
+            src.len() < 40 * weights + 60_000,
+            "{} bytes for {weights} weights",
+            src.len()
+        );
+    }
+}

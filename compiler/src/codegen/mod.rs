@@ -21,6 +21,7 @@
 pub mod analysis;
 mod builder;
 mod emit;
+mod kernels;
 mod template;
 mod wiring;
 

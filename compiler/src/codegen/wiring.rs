@@ -27,7 +27,14 @@ use crate::map::TopoMap;
 use super::CodegenOptions;
 use super::analysis::{Numerics, Unique, numerics, unique_components};
 use super::emit::{Lit, P};
+use super::kernels::{self, KernelCode};
 use super::template::TemplateCode;
+
+/// `[p0, p1, ...]`: a component's place indices as an array literal.
+fn places(p: &[usize]) -> String {
+    let v: Vec<String> = p.iter().map(|x| x.to_string()).collect();
+    format!("[{}]", v.join(", "))
+}
 
 fn sanitize(name: &str) -> String {
     let s: String = name
@@ -53,11 +60,9 @@ fn value_chunk(
     tpl: &[(String, Numerics)],
     d_count: usize,
     max: bool,
-    l: &Lit,
     body: &mut String,
 ) {
-    let t = l.t;
-    let f = if max { "mpe" } else { "fwd" };
+    let f = if max { "mpv" } else { "fwd" };
     // log10 of the current product bound, per decomposition.
     let mut bound = vec![0.0f64; d_count];
     let mut touched = vec![false; d_count];
@@ -69,18 +74,11 @@ fn value_chunk(
     }
     for u in chunk {
         let (name, num) = &tpl[u.template];
-        let rows: Vec<String> = u
-            .places
-            .iter()
-            .map(|p| format!("{P}prep_{t}(&e[{p}], labels[{p}])"))
-            .collect();
-        let call = if max {
-            let _ = writeln!(body, "let mut lab = [0u16; {}];", u.places.len());
-            format!("{name}_{f}(&[{}], &mut lab)", rows.join(", "))
-        } else {
-            format!("{name}_{f}(&[{}])", rows.join(", "))
-        };
-        let _ = writeln!(body, "let v = f64::from({call});");
+        let _ = writeln!(
+            body,
+            "let v = f64::from({name}_{f}(&{P}gather(e, labels, {})));",
+            places(&u.places)
+        );
         match num {
             Numerics::Linear { min_value, min_max } => {
                 let lb = (if max { *min_max } else { *min_value }).log10();
@@ -194,17 +192,52 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
                 Numerics::Log => "log space".into(),
             }
         );
-        code.statics(&l, &mut s);
-        code.fwd(&l, &mut s);
-        code.post(&l, &mut s);
-        code.mpe(&l, &mut s);
+        let plan = match tpl[k].1 {
+            Numerics::Linear { .. } => kernels::plan(spn, c),
+            Numerics::Log => None,
+        };
+        if let Some(plan) = &plan {
+            let kc = KernelCode {
+                prefix: tpl[k].0.clone(),
+                plan,
+            };
+            kc.statics(&l, &mut s);
+            kc.fwd(&l, &mut s);
+            kc.post(&l, &mut s);
+            kc.mpv(&l, &mut s);
+            kc.mpe(&l, &mut s);
+        } else {
+            code.statics(&l, &mut s);
+            code.fwd(&l, &mut s);
+            code.post(&l, &mut s);
+            code.mpe(&l, &mut s);
+            let _ = writeln!(
+                s,
+                "fn {p}_mpv(x: &[[{t}; {c}]; {n}]) -> {t} {{ let mut lab = [0u16; {n}]; {p}_mpe(x, &mut lab) }}",
+                p = tpl[k].0,
+                n = spn.num_vars()
+            );
+        }
+        // Per-component entry points used by the wiring (one short call each).
+        let _ = writeln!(
+            s,
+            "#[inline(never)] fn {p}_pw(e: &Evidence, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ let mut g = [[0.0; NUM_CLASSES]; {n}]; {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), &mut g); {P}scatter_post(out, w, &g, p); }}",
+            p = tpl[k].0,
+            n = spn.num_vars()
+        );
+        let _ = writeln!(
+            s,
+            "#[inline(never)] fn {p}_lw(e: &Evidence, p: [usize; {n}], labels: &mut Labels) {{ let mut lab = [0u16; {n}]; {p}_mpe(&{P}gather(e, &ALL_UNKNOWN, p), &mut lab); {P}scatter_labels(labels, &lab, p); }}",
+            p = tpl[k].0,
+            n = spn.num_vars()
+        );
     }
     let chunks: Vec<&[Unique]> = uniques.chunks(options.chunk_size).collect();
     // Value passes.
     for (j, ch) in chunks.iter().enumerate() {
         for (max, name) in [(false, "lp"), (true, "mpv")] {
             let mut body = String::new();
-            value_chunk(ch, &tpl, d_count, max, &l, &mut body);
+            value_chunk(ch, &tpl, d_count, max, &mut body);
             let _ = writeln!(
                 s,
                 "#[inline(never)] fn {name}_chunk{j}(e: &Evidence, labels: &Labels, lp: &mut [f64; NUM_DECOMPOSITIONS]) {{ {body} }}"
@@ -214,23 +247,13 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
         let mut body = String::new();
         for u in ch.iter() {
             let (name, _) = &tpl[u.template];
-            let rows: Vec<String> = u
-                .places
-                .iter()
-                .map(|p| format!("{P}prep_{t}(&e[{p}], UNKNOWN)"))
-                .collect();
             let ws: Vec<String> = u.decs.iter().map(|d| format!("w[{d}]")).collect();
             let _ = writeln!(
                 body,
-                "{{ let mut g = [[0.0; NUM_CLASSES]; {}]; {name}_post(&[{}], &mut g); let wk = {};",
-                u.places.len(),
-                rows.join(", "),
-                ws.join(" + ")
+                "{name}_pw(e, {}, {}, out);",
+                ws.join(" + "),
+                places(&u.places)
             );
-            for (i, p) in u.places.iter().enumerate() {
-                let _ = writeln!(body, "{P}axpy_{t}(&mut out[{p}], wk, &g[{i}]);");
-            }
-            body.push_str("}\n");
         }
         let _ = writeln!(
             s,
@@ -245,21 +268,7 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
             let mut body = String::new();
             for comp in ch {
                 let (name, _) = &tpl[comp.template];
-                let rows: Vec<String> = comp
-                    .places
-                    .iter()
-                    .map(|p| format!("{P}prep_{t}(&e[{p}], UNKNOWN)"))
-                    .collect();
-                let _ = writeln!(
-                    body,
-                    "{{ let mut lab = [0u16; {}]; {name}_mpe(&[{}], &mut lab);",
-                    comp.places.len(),
-                    rows.join(", ")
-                );
-                for (i, p) in comp.places.iter().enumerate() {
-                    let _ = writeln!(body, "labels[{p}] = lab[{i}];");
-                }
-                body.push_str("}\n");
+                let _ = writeln!(body, "{name}_lw(e, {}, labels);", places(&comp.places));
             }
             let _ = writeln!(
                 s,

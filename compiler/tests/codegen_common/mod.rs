@@ -181,20 +181,25 @@ pub fn model(classes: usize, templates: Vec<Template>, spns: Vec<Spn>) -> Model 
     }
 }
 
-/// Evaluates an SPN by recursion from the root (independent of the generator's code):
+/// Evaluates an SPN bottom-up over nodes `0..=id` (independent of the generator's code):
 /// leaves take `x[var][class]`; `max` turns sums into max-products.
 pub fn eval(spn: &Spn, id: NodeId, x: &[Vec<f64>], max: bool) -> f64 {
-    match &spn.nodes[id as usize] {
-        Node::Leaf { var, class } => x[*var as usize][*class as usize],
-        Node::Product { children } => children.iter().map(|&c| eval(spn, c, x, max)).product(),
-        Node::Sum { children, weights } => {
-            let t = children
-                .iter()
-                .zip(weights)
-                .map(|(&c, w)| w * eval(spn, c, x, max));
-            if max { t.fold(0.0, f64::max) } else { t.sum() }
-        }
+    let mut v = Vec::with_capacity(id as usize + 1);
+    for n in &spn.nodes[..=id as usize] {
+        let val = match n {
+            Node::Leaf { var, class } => x[*var as usize][*class as usize],
+            Node::Product { children } => children.iter().map(|&c| v[c as usize]).product(),
+            Node::Sum { children, weights } => {
+                let t = children
+                    .iter()
+                    .zip(weights)
+                    .map(|(&c, w)| w * v[c as usize]);
+                if max { t.fold(0.0, f64::max) } else { t.sum() }
+            }
+        };
+        v.push(val);
     }
+    v[id as usize]
 }
 
 /// Brute-force answers for one evidence array.
@@ -366,4 +371,56 @@ pub fn tiny() -> (Model, TopoMap, Vec<Decomposition>) {
         },
     ];
     (m, mp, decs)
+}
+
+/// Replaces every sum's weights by random normalised ones (all `> 0`), keeping the
+/// structure: dense structures come with near-uniform weights, which make MPE ties likely.
+pub fn randomise_weights(spn: &mut Spn, rng: &mut ChaCha8Rng) {
+    for n in spn.nodes.iter_mut() {
+        if let Node::Sum { weights, .. } = n {
+            let w: Vec<f64> = (0..weights.len())
+                .map(|_| rng.random_range(0.05..1.0))
+                .collect();
+            let s: f64 = w.iter().sum();
+            *weights = w.iter().map(|x| x / s).collect();
+        }
+    }
+}
+
+/// A model with the real structure of `learn` (symmetric dense Star/Three/Pair with the
+/// authors' parameters, or plain dense ones with `decompositions` random splits per
+/// region), random weights, uniform Singleton, `classes` classes.
+pub fn dense_model(classes: usize, symmetric: bool, decompositions: usize, seed: u64) -> Model {
+    use graphspn_compiler::learn::{
+        DenseParams, dense_structure, symmetric_dense_structure, uniform_spn,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let params = DenseParams {
+        decompositions,
+        ..DenseParams::default()
+    };
+    let templates = Template::paper_set();
+    let spns = templates
+        .iter()
+        .map(|t| {
+            if t.num_nodes == 1 {
+                return uniform_spn(1, classes as u32).unwrap();
+            }
+            let mut spn = if symmetric {
+                symmetric_dense_structure(
+                    t.num_nodes,
+                    classes as u32,
+                    &params,
+                    &t.automorphisms(),
+                    seed,
+                )
+            } else {
+                dense_structure(t.num_nodes, classes as u32, &params, seed)
+            }
+            .unwrap();
+            randomise_weights(&mut spn, &mut rng);
+            spn
+        })
+        .collect();
+    model(classes, templates, spns)
 }
