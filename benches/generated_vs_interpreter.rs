@@ -99,7 +99,12 @@ fn main() {
     let mut c = Criterion::default().configure_from_args();
     let mut ratios: Vec<String> = Vec::new();
     bench_map!(c, demo_floor, "floor.json", ratios);
-    // bench_map!(c, saarbrucken_seq2_night1, "saarbrucken_seq2_night1.json", ratios);
+    bench_map!(
+        c,
+        saarbrucken_seq2_night1,
+        "saarbrucken_seq2_night1.json",
+        ratios
+    );
     c.final_summary();
     println!("generated vs interpreter (time per call, interpreter / generated):");
     for r in &ratios {

@@ -14,11 +14,9 @@ const SEED: u64 = 0;
 
 /// `(module name, map file under demo/, built by default)`.
 ///
-/// The 230-place COLD map is compiled only when `BUILD_LARGE` is true or the
-/// `GRAPHSPN_BUILD_LARGE` environment variable is set (until the fast kernels make
-/// it quick to build, the default stays off).
-// TODO(kernels): set BUILD_LARGE to true once a 230-place map builds in seconds.
-const BUILD_LARGE: bool = false;
+/// The 230-place COLD map is compiled when `BUILD_LARGE` is true (the default) or the
+/// `GRAPHSPN_BUILD_LARGE` environment variable is set.
+const BUILD_LARGE: bool = true;
 const MAPS: &[(&str, &str, bool)] = &[
     ("demo_floor", "demo/floor.json", false),
     (

@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 
 use graphspn_compiler::learn::structure::num_weights;
 use graphspn_compiler::learn::{
-    DenseParams, dense_structure, edge_orbits, symmetric_dense_structure, uniform_spn,
+    DenseParams, SplitChoice, dense_structure, edge_orbits, symmetric_dense_structure, uniform_spn,
 };
 use graphspn_compiler::spn::{Node, Spn};
 use learn_util::*;
@@ -103,6 +103,7 @@ fn distributions_are_normalised() {
         subsets: 2,
         sums: 2,
         balanced: false,
+        ..DenseParams::default()
     };
     let spn = dense_structure(5, 3, &p2, 11).unwrap();
     check_valid(&spn);
@@ -141,7 +142,10 @@ fn uniform_singleton() {
 
 #[test]
 fn symmetric_structure_is_closed_and_invariant() {
-    let p = DenseParams::default();
+    let p = DenseParams {
+        split_choice: SplitChoice::FewestImages,
+        ..DenseParams::default()
+    };
     for seed in 0..6 {
         let star = symmetric_dense_structure(5, 3, &p, &star_group(), seed).unwrap();
         check_valid(&star);
@@ -168,6 +172,11 @@ fn symmetric_structure_is_closed_and_invariant() {
     assert_eq!(num_weights(&t10), 1000);
     let p10 = symmetric_dense_structure(2, 10, &p, &pair_group(), 0).unwrap();
     assert_eq!(num_weights(&p10), 100);
+    // The default keeps the split with the most images, {P,x},{y,z},{w}: 12 splits ×
+    // (5·5·10) root products + 4 pivot pairs and 6 leaf pairs × 5 sums × 100 weights.
+    let most = symmetric_dense_structure(5, 10, &DenseParams::default(), &star_group(), 0).unwrap();
+    check_valid(&most);
+    assert_eq!(num_weights(&most), 12 * 250 + 10 * 500);
     // The plain structure of the Star is not invariant under all leaf swaps.
     let plain = dense_structure(5, 3, &p, 0).unwrap();
     assert!(edge_orbits(&plain, &star_group()).is_err());

@@ -1,8 +1,8 @@
 //! Sub-commands of the `graphspn` tool that have grown beyond a few lines, one file each.
 
 pub mod common;
+pub mod compile;
 pub mod infer;
 pub mod instance;
 pub mod reproduce;
-pub mod compile;
 pub mod train;

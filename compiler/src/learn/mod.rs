@@ -19,7 +19,9 @@ pub use file::ModelFileError;
 pub use from_maps::{TemplateTraining, TrainModelError, template_samples, train_model};
 pub use model::Model;
 pub use settings::{EmKind, Symmetry, TrainingSettings};
-pub use structure::{DenseParams, SplitChoice, dense_structure, symmetric_dense_structure, uniform_spn};
+pub use structure::{
+    DenseParams, SplitChoice, dense_structure, symmetric_dense_structure, uniform_spn,
+};
 pub use symmetry::{EdgeOrbits, augment_with_automorphisms, edge_orbits};
 pub use train::{Progress, TrainError, TrainingReport, train, train_tied};
 

@@ -29,7 +29,7 @@ pub enum Symmetry {
     Augment,
     /// Augment, build a structure closed under the automorphisms and tie the
     /// weights along their orbits: exactly symmetric (to ~1e-15), and a slightly
-    /// better fit, but larger (Star: 3,750 weights instead of 1,250 with 10
+    /// better fit, but larger (Star: 8,000 or 3,750 weights, see `SplitChoice`, instead of 1,250 with 10
     /// classes; Pair and Three unchanged). The default: the instance model must
     /// not depend on the arbitrary order a match lists the Star's leaves in.
     #[default]
