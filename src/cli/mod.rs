@@ -2,6 +2,7 @@
 
 pub mod common;
 pub mod compile;
+pub mod generated_check;
 pub mod infer;
 pub mod instance;
 pub mod reproduce;

@@ -134,7 +134,9 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     }
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
-    write_outputs(&rep, &setups, &cfg, &args.out, "")?;
+    let check =
+        super::generated_check::section(args.seed, if args.quick { 1 } else { cfg.rounds })?;
+    write_outputs(&rep, &setups, &cfg, &args.out, &check)?;
     eprintln!(
         "reproduction done in {:.1} s; wrote {}",
         start.elapsed().as_secs_f64(),
