@@ -1,132 +1,15 @@
 //! MRF baselines on the real COLD maps (needs `GRAPHSPN_DATA`; skipped when the
 //! variable is unset, fails when it is set but the folder is missing).
-//!
-//! Carries a minimal COLD loader of its own (filtering per REFERENCE-FACTS.md
-//! §1) so the baselines can be checked before the shared loader lands.
 
 use graphspn_compiler::experiments::evidence::{NoiseLevel, simulate_map_evidence};
-use graphspn_compiler::map::{ClassId, ClassSet, Place, TopoMap};
+use graphspn_compiler::map::{ClassId, TopoMap, cold};
 use graphspn_compiler::mrf::{BpOptions, CooccurrenceParams, Mrf2, Mrf3, MrfModel, Normalisation};
-use petgraph::graph::UnGraph;
-use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-fn class_of(raw: &str) -> Option<ClassId> {
-    Some(match raw {
-        "DW" => 0,
-        "CR" | "AT" | "ST" | "EV" => 1,
-        "1PO" => 2,
-        "2PO" | "PRO" => 3,
-        "LO" | "MPO" => 4,
-        "LAB" | "RL" | "LR" | "TR" => 5,
-        "BA" => 6,
-        "KT" => 7,
-        "MR" | "LMR" | "CF" => 8,
-        "UT" | "WS" | "PT" | "PA" => 9,
-        _ => return None,
-    })
-}
-
-fn load(dir: &Path) -> TopoMap {
-    let nodes = std::fs::read_to_string(dir.join("nodes.dat")).unwrap();
-    let rooms = std::fs::read_to_string(dir.join("rooms.dat")).unwrap_or_default();
-    let relabel: BTreeSet<i64> = rooms
-        .lines()
-        .filter_map(|l| {
-            let mut it = l.split_whitespace();
-            let id: i64 = it.next()?.parse().ok()?;
-            (it.next()? == "7-2PO-1").then_some(id)
-        })
-        .collect();
-    let mut places: BTreeMap<i64, (Place, Vec<i64>)> = BTreeMap::new();
-    for l in nodes.lines().filter(|l| !l.trim().is_empty()) {
-        let f: Vec<&str> = l.split_whitespace().collect();
-        let id: i64 = f[0].parse().unwrap();
-        let class = if relabel.contains(&id) {
-            Some(2)
-        } else {
-            class_of(f[8])
-        };
-        let Some(class) = class else { continue };
-        let nb: Vec<i64> = (0..8)
-            .map(|k| f[10 + 3 * k].parse::<i64>().unwrap())
-            .filter(|&n| n >= 0)
-            .collect();
-        let p = Place {
-            id: id as u32,
-            class: Some(class),
-            placeholder: f[1] == "1",
-            x: f[2].parse().unwrap(),
-            y: f[3].parse().unwrap(),
-        };
-        places.insert(id, (p, nb));
-    }
-    let mut edges = BTreeSet::new();
-    for (&a, (_, nb)) in &places {
-        for &b in nb {
-            if b != a && places.contains_key(&b) {
-                edges.insert((a.min(b), a.max(b)));
-            }
-        }
-    }
-    // Largest connected component (drops isolated nodes too).
-    let mut comp: BTreeMap<i64, usize> = BTreeMap::new();
-    let mut sizes = Vec::new();
-    for &s in places.keys() {
-        if comp.contains_key(&s) {
-            continue;
-        }
-        let k = sizes.len();
-        let mut stack = vec![s];
-        comp.insert(s, k);
-        let mut size = 0;
-        while let Some(u) = stack.pop() {
-            size += 1;
-            for &(a, b) in &edges {
-                let v = if a == u {
-                    b
-                } else if b == u {
-                    a
-                } else {
-                    continue;
-                };
-                if let std::collections::btree_map::Entry::Vacant(e) = comp.entry(v) {
-                    e.insert(k);
-                    stack.push(v);
-                }
-            }
-        }
-        sizes.push(size);
-    }
-    let best = (0..sizes.len()).max_by_key(|&k| sizes[k]).unwrap();
-    let mut g = UnGraph::new_undirected();
-    let mut index = BTreeMap::new();
-    for (&id, (p, _)) in &places {
-        if comp[&id] == best {
-            index.insert(id, g.add_node(p.clone()));
-        }
-    }
-    for &(a, b) in &edges {
-        if let (Some(&x), Some(&y)) = (index.get(&a), index.get(&b)) {
-            g.add_edge(x, y, ());
-        }
-    }
-    TopoMap {
-        name: dir.display().to_string(),
-        classes: ClassSet::paper(),
-        graph: g,
-    }
-}
-
 fn building(root: &Path, b: &str) -> Vec<TopoMap> {
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(root.join(b))
-        .unwrap_or_else(|e| panic!("{}: {e}", root.join(b).display()))
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.join("nodes.dat").exists())
-        .collect();
-    dirs.sort();
-    dirs.iter().map(|d| load(d)).collect()
+    cold::load_building(root, b)
+        .unwrap_or_else(|e| panic!("GRAPHSPN_DATA is set, so {b} must load: {e}"))
 }
 
 fn accuracy(marg: &[Vec<f64>], map: &TopoMap, only: impl Fn(usize) -> bool) -> f64 {

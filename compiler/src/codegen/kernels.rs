@@ -549,8 +549,19 @@ mod tests {
             .map(|s| s.weights.len() * s.weights[0].len())
             .sum();
         assert_eq!(weights, crate::learn::structure::num_weights(&spn));
+        // Default split choice {P,x},{y,z},{w}: 4 pivot pairs + 6 leaf pairs + the root,
+        // whose block concatenates the 12 images of the split.
+        assert_eq!(p.blocks.len(), 11);
+        assert_eq!(p.blocks.last().unwrap().segments.len(), 12);
+        assert_eq!(p.blocks[0].sums.len(), 5);
+        // The smaller closure {P},{x,y},{z,w}: 6 leaf pairs + the root with 3 images.
+        let fewest = DenseParams {
+            split_choice: crate::learn::SplitChoice::FewestImages,
+            ..DenseParams::default()
+        };
+        let spn = symmetric_dense_structure(5, 10, &fewest, &t.automorphisms(), 3).unwrap();
+        let p = plan(&spn, 10).expect("plan");
         assert_eq!(p.blocks.len(), 7);
         assert_eq!(p.blocks.last().unwrap().segments.len(), 3);
-        assert_eq!(p.blocks[0].sums.len(), 5);
     }
 }
