@@ -9,12 +9,18 @@
 //!   rows and its value multiplied (linear templates, in `f64`, flushed into a log
 //!   before the product could underflow) or added (log templates) into `lp[d]` for
 //!   every decomposition `d` containing it;
-//! - *posterior pass* (`post_chunk*`, marginals only): every distinct component is
-//!   evaluated again with its backward sweep, giving local posteriors
-//!   `m_k[i][c] = x_i[c]·∂T_k/∂x_i[c] / T_k`, which are added into `out[p]` weighted by
-//!   `Σ_{d ∋ k} w_d`, `w_d = e^{ln(1/D) + lp_d − ln Ŝ}` the posterior of decomposition `d`.
-//!   Recomputing the forward sweep costs about a third more arithmetic than storing
-//!   per-component gradients, which would need `D·N·C` scalars (2 MB at 10k places).
+//! - *marginals*, single pass (when the scratch is at most [`SINGLE_PASS_BYTES`]):
+//!   every distinct component is evaluated once with its backward sweep
+//!   (`mg_chunk*`), its value accumulated into `lp` as above and its local posteriors
+//!   `m_k[i][c] = x_i[c]·∂T_k/∂x_i[c] / T_k` kept in a stack scratch (one row per
+//!   component place, `Σ_k |k|·C` scalars: about 42 KB for a 230-place map); once the
+//!   decomposition posteriors `w_d = e^{ln(1/D) + lp_d − ln Ŝ}` are known, `sc_chunk*`
+//!   adds `(Σ_{d ∋ k} w_d)·m_k` into `out`;
+//! - *marginals*, two passes (larger maps): the value pass, then a posterior pass
+//!   (`post_chunk*`) evaluating every distinct component again with its backward
+//!   sweep and adding its weighted local posteriors into `out` directly. Recomputing
+//!   the forward sweep costs about a third more arithmetic than storing per-component
+//!   posteriors, which would need `D·N·C` scalars (2 MB at 10k places).
 //! - MPE: a max-product value pass, then only the best decomposition's components
 //!   are re-run with backtracking to write the labels.
 
@@ -29,6 +35,11 @@ use super::analysis::{Numerics, Unique, numerics, unique_components};
 use super::emit::{Lit, P};
 use super::kernels::{self, KernelCode};
 use super::template::TemplateCode;
+
+/// Largest stack scratch (bytes) for single-pass marginals: below it every unique
+/// component's local posteriors are kept, so each component is evaluated once (forward
+/// and backward); above it a value pass runs first and the posterior pass recomputes.
+pub const SINGLE_PASS_BYTES: usize = 64 * 1024;
 
 /// `[p0, p1, ...]`: a component's place indices as an array literal.
 fn places(p: &[usize]) -> String {
@@ -63,6 +74,26 @@ fn value_chunk(
     body: &mut String,
 ) {
     let f = if max { "mpv" } else { "fwd" };
+    let call = |_: usize, u: &Unique| {
+        format!(
+            "{}_{f}(&{P}gather(e, labels, {}))",
+            tpl[u.template].0,
+            places(&u.places)
+        )
+    };
+    value_chunk_with(chunk, tpl, d_count, max, &call, body);
+}
+
+/// [`value_chunk`] with the value expression of the `i`-th component of the chunk
+/// given by `call(i, component)` (a template `fwd`, `mpv` or `post` call).
+fn value_chunk_with(
+    chunk: &[Unique],
+    tpl: &[(String, Numerics)],
+    d_count: usize,
+    max: bool,
+    call: &dyn Fn(usize, &Unique) -> String,
+    body: &mut String,
+) {
     // log10 of the current product bound, per decomposition.
     let mut bound = vec![0.0f64; d_count];
     let mut touched = vec![false; d_count];
@@ -72,13 +103,9 @@ fn value_chunk(
     if uses_q {
         let _ = writeln!(body, "let mut q = [1.0f64; {d_count}];");
     }
-    for u in chunk {
-        let (name, num) = &tpl[u.template];
-        let _ = writeln!(
-            body,
-            "let v = f64::from({name}_{f}(&{P}gather(e, labels, {})));",
-            places(&u.places)
-        );
+    for (i, u) in chunk.iter().enumerate() {
+        let (_, num) = &tpl[u.template];
+        let _ = writeln!(body, "let v = f64::from({});", call(i, u));
         match num {
             Numerics::Linear { min_value, min_max } => {
                 let lb = (if max { *min_max } else { *min_value }).log10();
@@ -171,6 +198,19 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
         ids = ids.join(", "),
         names = names.join(", ")
     );
+    // Single-pass marginals: every unique component's local posteriors kept in a
+    // stack scratch of `rows` rows when it is small enough.
+    let mut offsets = Vec::with_capacity(uniques.len());
+    let mut rows = 0usize;
+    for u in &uniques {
+        offsets.push(rows);
+        rows += u.places.len();
+    }
+    let scalar = match options.precision {
+        super::Precision::F32 => 4,
+        super::Precision::F64 => 8,
+    };
+    let single_pass = rows * c * scalar <= SINGLE_PASS_BYTES;
     // Template functions.
     for (k, spn) in model.spns.iter().enumerate() {
         if !used[k] {
@@ -219,12 +259,27 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
             );
         }
         // Per-component entry points used by the wiring (one short call each).
-        let _ = writeln!(
-            s,
-            "#[inline(never)] fn {p}_pw(e: &Evidence, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ let mut g = [[0.0; NUM_CLASSES]; {n}]; {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), &mut g); {P}scatter_post(out, w, &g, p); }}",
-            p = tpl[k].0,
-            n = spn.num_vars()
-        );
+        if single_pass {
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn {p}_pg(e: &Evidence, p: [usize; {n}], g: &mut [[{t}; NUM_CLASSES]; {rows}], off: usize) -> {t} {{ match {P}rows_mut(g, off) {{ Some(r) => {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), r), None => 0.0 }} }}",
+                p = tpl[k].0,
+                n = spn.num_vars()
+            );
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn {p}_sg(g: &[[{t}; NUM_CLASSES]; {rows}], off: usize, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ if let Some(r) = {P}rows(g, off) {{ {P}scatter_post(out, w, r, p); }} }}",
+                p = tpl[k].0,
+                n = spn.num_vars()
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn {p}_pw(e: &Evidence, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ let mut g = [[0.0; NUM_CLASSES]; {n}]; {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), &mut g); {P}scatter_post(out, w, &g, p); }}",
+                p = tpl[k].0,
+                n = spn.num_vars()
+            );
+        }
         let _ = writeln!(
             s,
             "#[inline(never)] fn {p}_lw(e: &Evidence, p: [usize; {n}], labels: &mut Labels) {{ let mut lab = [0u16; {n}]; {p}_mpe(&{P}gather(e, &ALL_UNKNOWN, p), &mut lab); {P}scatter_labels(labels, &lab, p); }}",
@@ -233,6 +288,7 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
         );
     }
     let chunks: Vec<&[Unique]> = uniques.chunks(options.chunk_size).collect();
+    let mut chunk_start = 0usize;
     // Value passes.
     for (j, ch) in chunks.iter().enumerate() {
         for (max, name) in [(false, "lp"), (true, "mpv")] {
@@ -242,6 +298,40 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
                 s,
                 "#[inline(never)] fn {name}_chunk{j}(e: &Evidence, labels: &Labels, lp: &mut [f64; NUM_DECOMPOSITIONS]) {{ {body} }}"
             );
+        }
+        if single_pass {
+            let off = &offsets[chunk_start..chunk_start + ch.len()];
+            let call = |i: usize, u: &Unique| {
+                format!(
+                    "{}_pg(e, {}, g, {})",
+                    tpl[u.template].0,
+                    places(&u.places),
+                    off[i]
+                )
+            };
+            let mut body = String::new();
+            value_chunk_with(ch, &tpl, d_count, false, &call, &mut body);
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn mg_chunk{j}(e: &Evidence, lp: &mut [f64; NUM_DECOMPOSITIONS], g: &mut [[{t}; NUM_CLASSES]; {rows}]) {{ {body} }}"
+            );
+            let mut body = String::new();
+            for (u, o) in ch.iter().zip(off) {
+                let ws: Vec<String> = u.decs.iter().map(|d| format!("w[{d}]")).collect();
+                let _ = writeln!(
+                    body,
+                    "{}_sg(g, {o}, {}, {}, out);",
+                    tpl[u.template].0,
+                    ws.join(" + "),
+                    places(&u.places)
+                );
+            }
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn sc_chunk{j}(g: &[[{t}; NUM_CLASSES]; {rows}], w: &[{t}; NUM_DECOMPOSITIONS], out: &mut Marginals) {{ {body} }}"
+            );
+            chunk_start += ch.len();
+            continue;
         }
         // Posterior pass.
         let mut body = String::new();
@@ -284,9 +374,48 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
     let mpv_calls: String = (0..chunks.len())
         .map(|j| format!("mpv_chunk{j}(e, &ALL_UNKNOWN, &mut lp);"))
         .collect();
-    let post_calls: String = (0..chunks.len())
-        .map(|j| format!("post_chunk{j}(e, &w, out);"))
-        .collect();
+    let marginals_body = if single_pass {
+        let mg_calls: String = (0..chunks.len())
+            .map(|j| format!("mg_chunk{j}(e, &mut lp, &mut g);"))
+            .collect();
+        let sc_calls: String = (0..chunks.len())
+            .map(|j| format!("sc_chunk{j}(&g, &w, out);"))
+            .collect();
+        format!(
+            "let mut g = [[0.0{t}; NUM_CLASSES]; {rows}];
+    let mut lp = [0.0f64; NUM_DECOMPOSITIONS];
+    {mg_calls}
+    let lhat = {P}lse64(&lp) + ln_inv_d();
+    let l = {P}scale_{t}(e, &ALL_UNKNOWN) + lhat;
+    if !(l > f64::NEG_INFINITY) {{
+        return Err(::graphspn_runtime::EvidenceError::ZeroLikelihood);
+    }}
+    let w = {P}weights_{t}(&lp, lhat);
+    for row in out.iter_mut() {{
+        *row = [0.0; NUM_CLASSES];
+    }}
+    {sc_calls}
+    Ok(l as {t})"
+        )
+    } else {
+        let post_calls: String = (0..chunks.len())
+            .map(|j| format!("post_chunk{j}(e, &w, out);"))
+            .collect();
+        format!(
+            "let lp = log_parts(e, &ALL_UNKNOWN);
+    let lhat = {P}lse64(&lp) + ln_inv_d();
+    let l = {P}scale_{t}(e, &ALL_UNKNOWN) + lhat;
+    if !(l > f64::NEG_INFINITY) {{
+        return Err(::graphspn_runtime::EvidenceError::ZeroLikelihood);
+    }}
+    let w = {P}weights_{t}(&lp, lhat);
+    for row in out.iter_mut() {{
+        *row = [0.0; NUM_CLASSES];
+    }}
+    {post_calls}
+    Ok(l as {t})"
+        )
+    };
     let _ = write!(
         s,
         r#"
@@ -334,18 +463,7 @@ pub fn labelled_log_likelihood(labels: &Labels, e: &Evidence) -> Result<{t}, ::g
 
 /// Like [`marginals`], without validating the evidence.
 pub fn marginals_unchecked(e: &Evidence, out: &mut Marginals) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
-    let lp = log_parts(e, &ALL_UNKNOWN);
-    let lhat = {P}lse64(&lp) + ln_inv_d();
-    let l = {P}scale_{t}(e, &ALL_UNKNOWN) + lhat;
-    if !(l > f64::NEG_INFINITY) {{
-        return Err(::graphspn_runtime::EvidenceError::ZeroLikelihood);
-    }}
-    let w = {P}weights_{t}(&lp, lhat);
-    for row in out.iter_mut() {{
-        *row = [0.0; NUM_CLASSES];
-    }}
-    {post_calls}
-    Ok(l as {t})
+    {marginals_body}
 }}
 
 /// Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error
