@@ -34,8 +34,8 @@ const COLD_MAPS: &[&str] = &[
     "Freiburg/seq1_cloudy1",
     "Freiburg/seq2_sunny1",
     "Freiburg/seq3_cloudy1",
-    "Stockholm/floor4_cloudy_a1",
-    "Stockholm/floor5_cloudy_b",
+    "Stockholm/floor4_night_a1",
+    "Saarbrucken/seq3_sunny1",
 ];
 
 fn env_usize(name: &str, default: usize) -> usize {

@@ -330,6 +330,11 @@ pub fn check_case(case: &Case, evs: &[Vec<Vec<f64>>], vals: &[f64]) {
                         mpe.log_max_product,
                         ctx()
                     );
+                    // That the generated labels attain the max-product value is an
+                    // extra check (one more interpreter pass): every 10th vector.
+                    if v % 10 != 0 {
+                        return;
+                    }
                     let labels: Vec<Option<u32>> =
                         got[2..2 + n].iter().map(|&l| Some(l as u32)).collect();
                     let attained = ev.mpe(&labels, &evidence).unwrap_or_else(|err| {
