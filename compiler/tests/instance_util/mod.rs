@@ -6,7 +6,7 @@
 use graphspn_compiler::decompose::synthetic::random_connected_map;
 use graphspn_compiler::learn::model::MODEL_FORMAT;
 use graphspn_compiler::learn::{DenseParams, Model, dense_structure};
-use graphspn_compiler::map::{ClassId, ClassSet, TopoMap};
+use graphspn_compiler::map::{ClassSet, TopoMap};
 use graphspn_compiler::spn::{Node, Spn};
 use graphspn_compiler::template::Template;
 use rand::{Rng, SeedableRng};
@@ -111,37 +111,8 @@ pub fn random_rows(n: usize, c: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Linear-space value of an SPN for a complete assignment, by plain recursion over
-/// the node list (independent of the interpreter).
-pub fn value(spn: &Spn, x: &[ClassId]) -> f64 {
-    let mut v = vec![0.0f64; spn.nodes.len()];
-    for (i, n) in spn.nodes.iter().enumerate() {
-        v[i] = match n {
-            Node::Leaf { var, class } => f64::from(u8::from(u32::from(x[*var as usize]) == *class)),
-            Node::Sum { children, weights } => children
-                .iter()
-                .zip(weights)
-                .map(|(&c, w)| w * v[c as usize])
-                .sum(),
-            Node::Product { children } => children.iter().map(|&c| v[c as usize]).product(),
-        };
-    }
-    v[spn.root as usize]
-}
-
-/// All assignments of `n` variables with `c` classes.
-pub fn all_assignments(n: usize, c: u16) -> Vec<Vec<ClassId>> {
-    let mut out = vec![vec![]];
-    for _ in 0..n {
-        let mut next = Vec::new();
-        for a in &out {
-            for k in 0..c {
-                let mut b = a.clone();
-                b.push(k);
-                next.push(b);
-            }
-        }
-        out = next;
-    }
-    out
-}
+/// The brute-force SPN evaluator and assignment enumerator shared with the learning tests.
+#[path = "../learn_util/mod.rs"]
+mod learn_util;
+#[allow(unused_imports)]
+pub use learn_util::{all_assignments, value};
