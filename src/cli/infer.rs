@@ -3,7 +3,8 @@
 //!
 //! Evidence file (JSON): `{"format": 1, "evidence": {"<place id>": [α per class], …}}`.
 //! α are non-negative class likelihoods (need not sum to 1, not all 0); places not
-//! listed get a uniform row (no evidence).
+//! listed get α = 1 for every class (no evidence), so the reported log-likelihood is
+//! ln P(evidence of the listed places).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -72,8 +73,8 @@ fn line_of_key(text: &str, key: &str) -> Option<usize> {
         .map(|i| i + 1)
 }
 
-/// Parses an evidence file for `map`: one row per place (place order), uniform where
-/// none is given. Errors name the file, the line and the place id.
+/// Parses an evidence file for `map`: one row per place (place order), all ones (no
+/// evidence) where none is given. Errors name the file, the line and the place id.
 pub fn parse_evidence(text: &str, file: &Path, map: &TopoMap) -> Result<Vec<Vec<f64>>> {
     let f: EvidenceFile = serde_json::from_str(text)
         .with_context(|| format!("{}: not a valid evidence file", file.display()))?;
@@ -85,7 +86,7 @@ pub fn parse_evidence(text: &str, file: &Path, map: &TopoMap) -> Result<Vec<Vec<
         );
     }
     let c = map.classes.len();
-    let mut rows = vec![vec![1.0 / c as f64; c]; map.num_places()];
+    let mut rows = vec![vec![1.0; c]; map.num_places()];
     for (key, row) in &f.evidence {
         let at = || match line_of_key(text, key) {
             Some(l) => format!("{}:{l}", file.display()),
@@ -130,7 +131,7 @@ pub fn run(args: InferArgs) -> Result<()> {
                 std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
             parse_evidence(&text, p, &map)?
         }
-        None => vec![vec![1.0 / map.classes.len() as f64; map.classes.len()]; map.num_places()],
+        None => vec![vec![1.0; map.classes.len()]; map.num_places()],
     };
     let (_, inst) = instance_for(&args.model, &map, args.decompositions, args.seed)?;
     let mut im = InstanceModel::new(inst).context("compiling the instance")?;
