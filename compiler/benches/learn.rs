@@ -166,5 +166,34 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+/// The learning issue's figure: training the whole model on the real Freiburg +
+/// Saarbrucken maps (needs `GRAPHSPN_DATA`; skipped when unset). Must stay under 60 s.
+fn bench_real(c: &mut Criterion) {
+    let Some(dir) = std::env::var_os("GRAPHSPN_DATA") else {
+        eprintln!("GRAPHSPN_DATA unset: skipping the real-data training bench");
+        return;
+    };
+    let dir = std::path::PathBuf::from(dir);
+    let mut maps = graphspn_compiler::map::cold::load_building(&dir, "Freiburg").expect("Freiburg");
+    maps.extend(
+        graphspn_compiler::map::cold::load_building(&dir, "Saarbrucken").expect("Saarbrucken"),
+    );
+    let templates = graphspn_compiler::template::Template::paper_set();
+    let mut g = c.benchmark_group("train_model_real");
+    g.sample_size(10);
+    g.bench_function("freiburg_saarbrucken_58_maps", |b| {
+        b.iter(|| {
+            graphspn_compiler::learn::train_model(
+                black_box(&maps),
+                &templates,
+                &TrainingSettings::default(),
+                Progress::Hidden,
+            )
+            .expect("training")
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench, bench_real);
 criterion_main!(benches);
