@@ -210,7 +210,24 @@ pub fn plan(spn: &Spn, classes: usize) -> Option<Plan> {
     })
 }
 
-/// Emits the kernel-based template functions for a recognised plan.
+/// Components per lane group for a scalar type (`f32`: 8, `f64`: 4), the width of the
+/// runtime's lane vectors (`graphspn_runtime::__private::{LANES_F32, LANES_F64}`).
+pub fn lanes(l: &Lit) -> usize {
+    if l.t == "f32" { 8 } else { 4 }
+}
+
+/// The runtime's lane vector type for a scalar type.
+pub fn lane_type(l: &Lit) -> String {
+    if l.t == "f32" {
+        format!("{P}Lanes32")
+    } else {
+        format!("{P}Lanes64")
+    }
+}
+
+/// Emits the kernel-based template functions for a recognised plan: lane-group
+/// functions for values, local posteriors and max-product values (`_fwdv`, `_postv`,
+/// `_mpvv`, one component per SIMD lane) and a one-component MPE function (`_mpe`).
 pub struct KernelCode<'a> {
     /// Function name prefix, e.g. `t0_star`.
     pub prefix: String,
@@ -235,8 +252,12 @@ impl KernelCode<'_> {
         format!("x: &[[{}; {}]; {}]", l.t, self.plan.classes, self.plan.n)
     }
 
-    /// `static` weight tables, one per segment, laid out `w[k][j][m][i]` (last input
-    /// outermost) as the runtime kernels expect.
+    fn sig_xv(&self, l: &Lit) -> String {
+        format!("x: &[[{}; {}]; {}]", lane_type(l), self.plan.classes, self.plan.n)
+    }
+
+    /// `static` weight tables, one per segment, `w[m][i][j][k]` (row-major over the
+    /// segment's inputs, last input innermost) as the runtime kernels expect.
     pub fn statics(&self, l: &Lit, out: &mut String) {
         let num = |v: f64| -> String {
             if l.t == "f32" {
@@ -246,121 +267,64 @@ impl KernelCode<'_> {
             }
         };
         for (b, block) in self.plan.blocks.iter().enumerate() {
-            let m_len = block.sums.len();
             for (s, seg) in block.segments.iter().enumerate() {
-                let d = &seg.dims;
-                let (ty, text) = match d.len() {
-                    1 => {
-                        let rows: Vec<String> = (0..m_len)
-                            .map(|m| {
-                                let r: Vec<String> =
-                                    seg.weights[m].iter().map(|&v| num(v)).collect();
-                                format!("[{}]", r.join(","))
-                            })
-                            .collect();
-                        (
-                            format!("[[{}; {}]; {m_len}]", l.t, d[0]),
-                            format!("[{}]", rows.join(",")),
-                        )
-                    }
-                    2 => {
-                        let (a, bb) = (d[0], d[1]);
-                        let outer: Vec<String> = (0..bb)
-                            .map(|j| {
-                                let ms: Vec<String> = (0..m_len)
-                                    .map(|m| {
-                                        let r: Vec<String> = (0..a)
-                                            .map(|i| num(seg.weights[m][i * bb + j]))
-                                            .collect();
-                                        format!("[{}]", r.join(","))
-                                    })
-                                    .collect();
-                                format!("[{}]", ms.join(","))
-                            })
-                            .collect();
-                        (
-                            format!("[[[{}; {a}]; {m_len}]; {bb}]", l.t),
-                            format!("[{}]", outer.join(",")),
-                        )
-                    }
-                    _ => {
-                        let (a, bb, kk) = (d[0], d[1], d[2]);
-                        let outer: Vec<String> = (0..kk)
-                            .map(|k| {
-                                let js: Vec<String> = (0..bb)
-                                    .map(|j| {
-                                        let ms: Vec<String> = (0..m_len)
-                                            .map(|m| {
-                                                let r: Vec<String> = (0..a)
-                                                    .map(|i| {
-                                                        num(seg.weights[m][(i * bb + j) * kk + k])
-                                                    })
-                                                    .collect();
-                                                format!("[{}]", r.join(","))
-                                            })
-                                            .collect();
-                                        format!("[{}]", ms.join(","))
-                                    })
-                                    .collect();
-                                format!("[{}]", js.join(","))
-                            })
-                            .collect();
-                        (
-                            format!("[[[[{}; {a}]; {m_len}]; {bb}]; {kk}]", l.t),
-                            format!("[{}]", outer.join(",")),
-                        )
-                    }
-                };
-                let _ = writeln!(out, "static {}: {ty} = {text};", self.w(b, s));
+                // Type: [[[T; K]; B]; A]; M], innermost dimension last.
+                let mut ty = l.t.to_string();
+                for d in seg.dims.iter().rev() {
+                    ty = format!("[{ty}; {d}]");
+                }
+                ty = format!("[{ty}; {}]", block.sums.len());
+                let rows: Vec<String> = seg
+                    .weights
+                    .iter()
+                    .map(|wm| nest(&wm.iter().map(|&v| num(v)).collect::<Vec<_>>(), &seg.dims))
+                    .collect();
+                let _ = writeln!(
+                    out,
+                    "static {}: {ty} = [{}];",
+                    self.w(b, s),
+                    rows.join(",")
+                );
             }
         }
     }
 
-    /// Forward statements computing every block output `b{k}`; `keep` stores the
-    /// kernels' intermediates `u{k}_{s}`, `v{k}_{s}` for the backward sweep.
+    /// Forward statements over lanes computing every block output `b{k}`; `keep`
+    /// stores the kernels' intermediates `u{k}_{s}`, `v{k}_{s}` for the backward sweep.
     fn forward(&self, l: &Lit, keep: bool, body: &mut String) {
-        let t = l.t;
+        let v = lane_type(l);
         for (b, block) in self.plan.blocks.iter().enumerate() {
             let m_len = block.sums.len();
-            let _ = writeln!(body, "let mut b{b} = [0.0{t}; {m_len}];");
+            let _ = writeln!(body, "let mut b{b} = [{v}::ZERO; {m_len}];");
             for (s, seg) in block.segments.iter().enumerate() {
                 let ins: Vec<String> = seg.inputs.iter().map(|&g| self.vec_ref(g, "b")).collect();
                 let w = self.w(b, s);
                 let d = &seg.dims;
-                match (d.len(), keep) {
-                    (1, _) => {
-                        let _ = writeln!(body, "{P}d1_fwd(&{w}, {}, &mut b{b});", ins[0]);
-                    }
+                let _ = match (d.len(), keep) {
+                    (1, _) => writeln!(body, "{P}v1_fwd(&{w}, {}, &mut b{b});", ins[0]),
                     (2, false) => {
-                        let _ =
-                            writeln!(body, "{P}d2_fwd(&{w}, {}, {}, &mut b{b});", ins[0], ins[1]);
+                        writeln!(body, "{P}v2_fwd(&{w}, {}, {}, &mut b{b});", ins[0], ins[1])
                     }
-                    (2, true) => {
-                        let _ = writeln!(
-                            body,
-                            "let mut u{b}_{s} = [[0.0{t}; {}]; {m_len}]; {P}d2_fwdk(&{w}, {}, {}, &mut u{b}_{s}, &mut b{b});",
-                            d[0], ins[0], ins[1]
-                        );
-                    }
-                    (_, false) => {
-                        let _ = writeln!(
-                            body,
-                            "{P}d3_fwd(&{w}, {}, {}, {}, &mut b{b});",
-                            ins[0], ins[1], ins[2]
-                        );
-                    }
-                    (_, true) => {
-                        let _ = writeln!(
-                            body,
-                            "let mut u{b}_{s} = [[[0.0{t}; {a}]; {m_len}]; {bb}]; let mut v{b}_{s} = [[0.0{t}; {a}]; {m_len}]; {P}d3_fwdk(&{w}, {}, {}, {}, &mut u{b}_{s}, &mut v{b}_{s}, &mut b{b});",
-                            ins[0],
-                            ins[1],
-                            ins[2],
-                            a = d[0],
-                            bb = d[1]
-                        );
-                    }
-                }
+                    (2, true) => writeln!(
+                        body,
+                        "let mut u{b}_{s} = [[{v}::ZERO; {}]; {m_len}]; {P}v2_fwdk(&{w}, {}, {}, &mut u{b}_{s}, &mut b{b});",
+                        d[0], ins[0], ins[1]
+                    ),
+                    (_, false) => writeln!(
+                        body,
+                        "{P}v3_fwd(&{w}, {}, {}, {}, &mut b{b});",
+                        ins[0], ins[1], ins[2]
+                    ),
+                    (_, true) => writeln!(
+                        body,
+                        "let mut u{b}_{s} = [[[{v}::ZERO; {bb}]; {a}]; {m_len}]; let mut v{b}_{s} = [[{v}::ZERO; {a}]; {m_len}]; {P}v3_fwdk(&{w}, ({}, {}, {}), &mut u{b}_{s}, &mut v{b}_{s}, &mut b{b});",
+                        ins[0],
+                        ins[1],
+                        ins[2],
+                        a = d[0],
+                        bb = d[1]
+                    ),
+                };
             }
         }
     }
@@ -369,34 +333,38 @@ impl KernelCode<'_> {
         format!("b{}[{}]", self.plan.root.0, self.plan.root.1)
     }
 
-    /// `fn <prefix>_fwd(x) -> value` (linear space).
-    pub fn fwd(&self, l: &Lit, out: &mut String) {
+    /// `fn <prefix>_fwdv(x) -> [value; L]`: the values of a lane group (linear space).
+    pub fn fwdv(&self, l: &Lit, out: &mut String) {
         let mut body = String::new();
         self.forward(l, false, &mut body);
         let _ = writeln!(
             out,
-            "#[inline(never)] fn {}_fwd({}) -> {} {{ {body} {} }}",
+            "#[inline(never)] fn {}_fwdv({}) -> [{}; {}] {{ {body} {P}values_{}({}) }}",
             self.prefix,
-            self.sig_x(l),
+            self.sig_xv(l),
+            l.t,
+            lanes(l),
             l.t,
             self.root()
         );
     }
 
-    /// `fn <prefix>_post(x, post) -> value`: also the local posteriors
-    /// `post[i][c] = x_i[c]·∂T/∂x_i[c] / T` by reverse-mode adjoints through the blocks.
-    pub fn post(&self, l: &Lit, out: &mut String) {
+    /// `fn <prefix>_postv(x, post) -> [value; L]`: also the local posteriors
+    /// `post[i][c] = x_i[c]·∂T/∂x_i[c] / T` of every lane by reverse-mode adjoints
+    /// through the blocks.
+    pub fn postv(&self, l: &Lit, out: &mut String) {
         let t = l.t;
+        let v = lane_type(l);
         let p = self.plan;
         let mut body = String::new();
         self.forward(l, true, &mut body);
-        for v in 0..p.n {
-            let _ = writeln!(body, "let mut gx{v} = [0.0{t}; {}];", p.classes);
+        for var in 0..p.n {
+            let _ = writeln!(body, "let mut gx{var} = [{v}::ZERO; {}];", p.classes);
         }
         for (b, block) in p.blocks.iter().enumerate() {
-            let _ = writeln!(body, "let mut g{b} = [0.0{t}; {}];", block.sums.len());
+            let _ = writeln!(body, "let mut g{b} = [{v}::ZERO; {}];", block.sums.len());
         }
-        let _ = writeln!(body, "g{}[{}] = 1.0;", p.root.0, p.root.1);
+        let _ = writeln!(body, "g{}[{}] = {v}::splat(1.0);", p.root.0, p.root.1);
         let gref = |g: usize| -> String {
             if g < p.n {
                 format!("&mut gx{g}")
@@ -410,46 +378,51 @@ impl KernelCode<'_> {
                 let ins: Vec<String> = seg.inputs.iter().map(|&g| self.vec_ref(g, "b")).collect();
                 let gs: Vec<String> = seg.inputs.iter().map(|&g| gref(g)).collect();
                 let _ = match seg.dims.len() {
-                    1 => writeln!(body, "{P}d1_bwd(&{w}, &g{b}, {});", gs[0]),
+                    1 => writeln!(body, "{P}v1_bwd(&{w}, &g{b}, {});", gs[0]),
                     2 => writeln!(
                         body,
-                        "{P}d2_bwd(&{w}, {}, &u{b}_{s}, &g{b}, {}, {});",
+                        "{P}v2_bwd(&{w}, {}, &u{b}_{s}, &g{b}, {}, {});",
                         ins[0], gs[0], gs[1]
                     ),
                     _ => writeln!(
                         body,
-                        "{P}d3_bwd(&{w}, {}, {}, &u{b}_{s}, &v{b}_{s}, &g{b}, {}, {}, {});",
+                        "{P}v3_bwd(&{w}, ({}, {}), (&u{b}_{s}, &v{b}_{s}), &g{b}, ({}, {}, {}));",
                         ins[0], ins[1], gs[0], gs[1], gs[2]
                     ),
                 };
             }
         }
-        let _ = writeln!(body, "let inv = 1.0 / {};", self.root());
-        for v in 0..p.n {
-            let _ = writeln!(body, "{P}post_row(&x[{v}], &gx{v}, inv, &mut post[{v}]);");
+        let _ = writeln!(body, "let inv = {P}inv_lanes_{t}({});", self.root());
+        for var in 0..p.n {
+            let _ = writeln!(
+                body,
+                "{P}post_lanes(&x[{var}], &gx{var}, inv, &mut post[{var}]);"
+            );
         }
         let _ = writeln!(
             out,
-            "#[inline(never)] fn {}_post({}, post: &mut [[{t}; {}]; {}]) -> {t} {{ {body} {} }}",
+            "#[inline(never)] fn {}_postv({}, post: &mut [[{v}; {}]; {}]) -> [{t}; {}] {{ {body} {P}values_{t}({}) }}",
             self.prefix,
-            self.sig_x(l),
+            self.sig_xv(l),
             p.classes,
             p.n,
+            lanes(l),
             self.root()
         );
     }
 
-    /// `fn <prefix>_mpv(x) -> value`: the max-product value only.
-    pub fn mpv(&self, l: &Lit, out: &mut String) {
+    /// `fn <prefix>_mpvv(x) -> [value; L]`: the max-product values of a lane group.
+    pub fn mpvv(&self, l: &Lit, out: &mut String) {
         let t = l.t;
+        let v = lane_type(l);
         let mut body = String::new();
         for (b, block) in self.plan.blocks.iter().enumerate() {
-            let _ = writeln!(body, "let mut b{b} = [0.0{t}; {}];", block.sums.len());
+            let _ = writeln!(body, "let mut b{b} = [{v}::ZERO; {}];", block.sums.len());
             for (s, seg) in block.segments.iter().enumerate() {
                 let ins: Vec<String> = seg.inputs.iter().map(|&g| self.vec_ref(g, "b")).collect();
                 let _ = writeln!(
                     body,
-                    "{P}d{}_max(&{}, {}, &mut b{b});",
+                    "{P}v{}_max(&{}, {}, &mut b{b});",
                     seg.dims.len(),
                     self.w(b, s),
                     ins.join(", ")
@@ -458,15 +431,16 @@ impl KernelCode<'_> {
         }
         let _ = writeln!(
             out,
-            "#[inline(never)] fn {}_mpv({}) -> {t} {{ {body} {} }}",
+            "#[inline(never)] fn {}_mpvv({}) -> [{t}; {}] {{ {body} {P}values_{t}({}) }}",
             self.prefix,
-            self.sig_x(l),
+            self.sig_xv(l),
+            lanes(l),
             self.root()
         );
     }
 
     /// `fn <prefix>_mpe(x, lab) -> value`: max-product value and the argmax labelling
-    /// by backtracking (ties → lowest split, then lowest index of each input).
+    /// of one component by backtracking (ties → lowest split, then lowest indices).
     pub fn mpe(&self, l: &Lit, out: &mut String) {
         let t = l.t;
         let p = self.plan;
@@ -479,12 +453,16 @@ impl KernelCode<'_> {
             );
             for (s, seg) in block.segments.iter().enumerate() {
                 let ins: Vec<String> = seg.inputs.iter().map(|&g| self.vec_ref(g, "b")).collect();
+                let args = if ins.len() == 1 {
+                    ins[0].clone()
+                } else {
+                    format!("({})", ins.join(", "))
+                };
                 let _ = writeln!(
                     body,
-                    "{P}d{}_maxa({s}, &{}, {}, &mut b{b}, &mut a{b});",
+                    "{P}d{}_maxa({s}, &{}, {args}, &mut b{b}, &mut a{b});",
                     seg.dims.len(),
                     self.w(b, s),
-                    ins.join(", ")
                 );
             }
         }
@@ -527,6 +505,19 @@ impl KernelCode<'_> {
             p.n,
             self.root()
         );
+    }
+}
+
+/// `flat` (row-major over `dims`) as nested array literals.
+fn nest(flat: &[String], dims: &[usize]) -> String {
+    match dims.split_first() {
+        None => flat.first().cloned().unwrap_or_default(),
+        Some((_, rest)) if rest.is_empty() => format!("[{}]", flat.join(",")),
+        Some((_, rest)) => {
+            let inner: usize = rest.iter().product();
+            let parts: Vec<String> = flat.chunks(inner).map(|c| nest(c, rest)).collect();
+            format!("[{}]", parts.join(","))
+        }
     }
 }
 

@@ -61,67 +61,120 @@ fn sanitize(name: &str) -> String {
     s.chars().take(24).collect()
 }
 
-/// Emits the calls of one chunk's value pass into `body`.
-///
-/// `max` selects the max-product functions. Linear values are multiplied into
-/// `q[d]` (`f64`) and flushed (`lp[d] += ln q[d]`) before the product of their lower
-/// bounds could drop below `1e-300`.
-fn value_chunk(
-    chunk: &[Unique],
-    tpl: &[(String, Numerics)],
-    d_count: usize,
-    max: bool,
-    body: &mut String,
-) {
-    let f = if max { "mpv" } else { "fwd" };
-    let call = |_: usize, u: &Unique| {
-        format!(
-            "{}_{f}(&{P}gather(e, labels, {}))",
-            tpl[u.template].0,
-            places(&u.places)
-        )
-    };
-    value_chunk_with(chunk, tpl, d_count, max, &call, body);
+/// A unit of wiring: a lane group of up to `L` components of one kernel template
+/// (one SIMD call), or one component of a template without kernels.
+#[derive(Clone, Debug)]
+enum Item {
+    /// Indices into the unique components; all of one template, at most `L`.
+    Group(Vec<usize>),
+    /// Index into the unique components.
+    Single(usize),
 }
 
-/// [`value_chunk`] with the value expression of the `i`-th component of the chunk
-/// given by `call(i, component)` (a template `fwd`, `mpv` or `post` call).
-fn value_chunk_with(
-    chunk: &[Unique],
+impl Item {
+    fn members(&self) -> &[usize] {
+        match self {
+            Item::Group(m) => m,
+            Item::Single(u) => std::slice::from_ref(u),
+        }
+    }
+}
+
+/// Groups the unique components: template by template (in template order, components
+/// in order of first appearance), kernel templates in lane groups of `lanes`.
+fn items(uniques: &[Unique], grouped: &[bool], lanes: usize) -> Vec<Item> {
+    let mut out = Vec::new();
+    for (k, &g) in grouped.iter().enumerate() {
+        let mine: Vec<usize> = (0..uniques.len())
+            .filter(|&u| uniques[u].template == k)
+            .collect();
+        if g {
+            out.extend(mine.chunks(lanes).map(|c| Item::Group(c.to_vec())));
+        } else {
+            out.extend(mine.into_iter().map(Item::Single));
+        }
+    }
+    out
+}
+
+/// Splits items into consecutive chunks of at most `size` components (at least one
+/// item each), as index ranges into `items`.
+fn chunk_items(items: &[Item], size: usize) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let (mut start, mut count) = (0usize, 0usize);
+    for (i, it) in items.iter().enumerate() {
+        let n = it.members().len();
+        if count > 0 && count + n > size {
+            out.push(start..i);
+            start = i;
+            count = 0;
+        }
+        count += n;
+    }
+    if start < items.len() {
+        out.push(start..items.len());
+    }
+    out
+}
+
+/// The place lists of a lane group as `[[p, ...], ...]`, padded to `lanes` rows by
+/// repeating the first member (padding lanes are computed and ignored).
+fn lane_places(uniques: &[Unique], members: &[usize], lanes: usize) -> String {
+    let rows: Vec<String> = (0..lanes)
+        .map(|l| places(&uniques[*members.get(l).unwrap_or(&members[0])].places))
+        .collect();
+    format!("[{}]", rows.join(", "))
+}
+
+/// Emits one chunk's value pass into `body`: each item's call (`call(item)`, a
+/// statement binding `v`: an array of lane values for groups, a scalar otherwise),
+/// then each member's value multiplied (linear templates, in `f64`, flushed into a log
+/// before the product of lower bounds could drop below `1e-300`) or added (log
+/// templates) into `lp[d]` for every decomposition `d` containing it. `max` selects
+/// the max-product bounds.
+fn value_chunk(
+    chunk: &[Item],
+    uniques: &[Unique],
     tpl: &[(String, Numerics)],
     d_count: usize,
     max: bool,
-    call: &dyn Fn(usize, &Unique) -> String,
+    call: &dyn Fn(&Item) -> String,
     body: &mut String,
 ) {
     // log10 of the current product bound, per decomposition.
     let mut bound = vec![0.0f64; d_count];
     let mut touched = vec![false; d_count];
-    let uses_q = chunk
-        .iter()
-        .any(|u| matches!(tpl[u.template].1, Numerics::Linear { .. }));
+    let uses_q = chunk.iter().flat_map(Item::members).any(|&u| {
+        matches!(tpl[uniques[u].template].1, Numerics::Linear { .. })
+    });
     if uses_q {
         let _ = writeln!(body, "let mut q = [1.0f64; {d_count}];");
     }
-    for (i, u) in chunk.iter().enumerate() {
-        let (_, num) = &tpl[u.template];
-        let _ = writeln!(body, "let v = f64::from({});", call(i, u));
-        match num {
-            Numerics::Linear { min_value, min_max } => {
-                let lb = (if max { *min_max } else { *min_value }).log10();
-                for &d in &u.decs {
-                    if bound[d] + lb < -300.0 {
-                        let _ = writeln!(body, "lp[{d}] += {P}ln64(q[{d}]); q[{d}] = 1.0;");
-                        bound[d] = 0.0;
+    for it in chunk {
+        let _ = writeln!(body, "let v = {};", call(it));
+        for (lane, &ui) in it.members().iter().enumerate() {
+            let u = &uniques[ui];
+            let value = match it {
+                Item::Group(_) => format!("f64::from(v[{lane}])"),
+                Item::Single(_) => "f64::from(v)".to_string(),
+            };
+            match &tpl[u.template].1 {
+                Numerics::Linear { min_value, min_max } => {
+                    let lb = (if max { *min_max } else { *min_value }).log10();
+                    for &d in &u.decs {
+                        if bound[d] + lb < -300.0 {
+                            let _ = writeln!(body, "lp[{d}] += {P}ln64(q[{d}]); q[{d}] = 1.0;");
+                            bound[d] = 0.0;
+                        }
+                        bound[d] += lb;
+                        touched[d] = true;
+                        let _ = writeln!(body, "q[{d}] *= {value};");
                     }
-                    bound[d] += lb;
-                    touched[d] = true;
-                    let _ = writeln!(body, "q[{d}] *= v;");
                 }
-            }
-            Numerics::Log => {
-                for &d in &u.decs {
-                    let _ = writeln!(body, "lp[{d}] += v;");
+                Numerics::Log => {
+                    for &d in &u.decs {
+                        let _ = writeln!(body, "lp[{d}] += {value};");
+                    }
                 }
             }
         }
@@ -131,6 +184,12 @@ fn value_chunk_with(
             let _ = writeln!(body, "lp[{d}] += {P}ln64(q[{d}]);");
         }
     }
+}
+
+/// `w[d0] + w[d1] + ...`: the posterior weight of a component's decompositions.
+fn weight_sum(u: &Unique) -> String {
+    let ws: Vec<String> = u.decs.iter().map(|d| format!("w[{d}]")).collect();
+    ws.join(" + ")
 }
 
 /// The whole module text (unformatted).
@@ -198,13 +257,34 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
         ids = ids.join(", "),
         names = names.join(", ")
     );
+    // Kernel plans: templates evaluated in SIMD lane groups.
+    let plans: Vec<Option<kernels::Plan>> = model
+        .spns
+        .iter()
+        .enumerate()
+        .map(|(k, spn)| match tpl[k].1 {
+            Numerics::Linear { .. } if used[k] => kernels::plan(spn, c),
+            _ => None,
+        })
+        .collect();
+    let grouped: Vec<bool> = plans.iter().map(Option::is_some).collect();
+    let lanes = kernels::lanes(&l);
+    let lv = kernels::lane_type(&l);
+    let items = items(&uniques, &grouped, lanes);
     // Single-pass marginals: every unique component's local posteriors kept in a
-    // stack scratch of `rows` rows when it is small enough.
-    let mut offsets = Vec::with_capacity(uniques.len());
+    // stack scratch of `rows` rows when it is small enough (lane groups take rows for
+    // all their lanes, padding included).
+    let mut offsets = vec![0usize; uniques.len()];
     let mut rows = 0usize;
-    for u in &uniques {
-        offsets.push(rows);
-        rows += u.places.len();
+    for it in &items {
+        let width = uniques[it.members()[0]].places.len();
+        for (lane, &u) in it.members().iter().enumerate() {
+            offsets[u] = rows + lane * width;
+        }
+        rows += match it {
+            Item::Group(_) => lanes * width,
+            Item::Single(_) => width,
+        };
     }
     let scalar = match options.precision {
         super::Precision::F32 => 4,
@@ -216,12 +296,8 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
         if !used[k] {
             continue;
         }
-        let code = TemplateCode {
-            prefix: tpl[k].0.clone(),
-            spn,
-            numerics: tpl[k].1,
-            classes: c,
-        };
+        let p = &tpl[k].0;
+        let n = spn.num_vars();
         let _ = writeln!(
             s,
             "// template {k} ({:?}): {}",
@@ -232,118 +308,161 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
                 Numerics::Log => "log space".into(),
             }
         );
-        let plan = match tpl[k].1 {
-            Numerics::Linear { .. } => kernels::plan(spn, c),
-            Numerics::Log => None,
-        };
-        if let Some(plan) = &plan {
+        if let Some(plan) = &plans[k] {
             let kc = KernelCode {
-                prefix: tpl[k].0.clone(),
+                prefix: p.clone(),
                 plan,
             };
             kc.statics(&l, &mut s);
-            kc.fwd(&l, &mut s);
-            kc.post(&l, &mut s);
-            kc.mpv(&l, &mut s);
+            kc.fwdv(&l, &mut s);
+            kc.postv(&l, &mut s);
+            kc.mpvv(&l, &mut s);
             kc.mpe(&l, &mut s);
+            if !single_pass {
+                let _ = writeln!(
+                    s,
+                    "#[inline(never)] fn {p}_pwv(e: &Evidence, w: [{t}; {lanes}], p: [[usize; {n}]; {lanes}], out: &mut Marginals) {{ let mut post = [[{lv}::ZERO; NUM_CLASSES]; {n}]; {p}_postv(&{P}gather_lanes_{t}(e, &ALL_UNKNOWN, p), &mut post); {P}scatter_lanes_{t}(out, w, &post, p); }}"
+                );
+            } else {
+                let _ = writeln!(
+                    s,
+                    "#[inline(never)] fn {p}_pgv(e: &Evidence, p: [[usize; {n}]; {lanes}], g: &mut [[{t}; NUM_CLASSES]; {rows}], off: usize) -> [{t}; {lanes}] {{ let mut post = [[{lv}::ZERO; NUM_CLASSES]; {n}]; let v = {p}_postv(&{P}gather_lanes_{t}(e, &ALL_UNKNOWN, p), &mut post); {P}store_lanes_{t}(g, off, &post); v }}"
+                );
+            }
         } else {
+            let code = TemplateCode {
+                prefix: p.clone(),
+                spn,
+                numerics: tpl[k].1,
+                classes: c,
+            };
             code.statics(&l, &mut s);
             code.fwd(&l, &mut s);
             code.post(&l, &mut s);
             code.mpe(&l, &mut s);
             let _ = writeln!(
                 s,
-                "fn {p}_mpv(x: &[[{t}; {c}]; {n}]) -> {t} {{ let mut lab = [0u16; {n}]; {p}_mpe(x, &mut lab) }}",
-                p = tpl[k].0,
-                n = spn.num_vars()
+                "fn {p}_mpv(x: &[[{t}; {c}]; {n}]) -> {t} {{ let mut lab = [0u16; {n}]; {p}_mpe(x, &mut lab) }}"
             );
+            if !single_pass {
+                let _ = writeln!(
+                    s,
+                    "#[inline(never)] fn {p}_pw(e: &Evidence, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ let mut g = [[0.0; NUM_CLASSES]; {n}]; {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), &mut g); {P}scatter_post(out, w, &g, p); }}"
+                );
+            } else {
+                let _ = writeln!(
+                    s,
+                    "#[inline(never)] fn {p}_pg(e: &Evidence, p: [usize; {n}], g: &mut [[{t}; NUM_CLASSES]; {rows}], off: usize) -> {t} {{ match {P}rows_mut(g, off) {{ Some(r) => {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), r), None => 0.0 }} }}"
+                );
+            }
         }
-        // Per-component entry points used by the wiring (one short call each).
         if single_pass {
             let _ = writeln!(
                 s,
-                "#[inline(never)] fn {p}_pg(e: &Evidence, p: [usize; {n}], g: &mut [[{t}; NUM_CLASSES]; {rows}], off: usize) -> {t} {{ match {P}rows_mut(g, off) {{ Some(r) => {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), r), None => 0.0 }} }}",
-                p = tpl[k].0,
-                n = spn.num_vars()
-            );
-            let _ = writeln!(
-                s,
-                "#[inline(never)] fn {p}_sg(g: &[[{t}; NUM_CLASSES]; {rows}], off: usize, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ if let Some(r) = {P}rows(g, off) {{ {P}scatter_post(out, w, r, p); }} }}",
-                p = tpl[k].0,
-                n = spn.num_vars()
-            );
-        } else {
-            let _ = writeln!(
-                s,
-                "#[inline(never)] fn {p}_pw(e: &Evidence, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ let mut g = [[0.0; NUM_CLASSES]; {n}]; {p}_post(&{P}gather(e, &ALL_UNKNOWN, p), &mut g); {P}scatter_post(out, w, &g, p); }}",
-                p = tpl[k].0,
-                n = spn.num_vars()
+                "#[inline(never)] fn {p}_sg(g: &[[{t}; NUM_CLASSES]; {rows}], off: usize, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ if let Some(r) = {P}rows(g, off) {{ {P}scatter_post(out, w, r, p); }} }}"
             );
         }
         let _ = writeln!(
             s,
-            "#[inline(never)] fn {p}_lw(e: &Evidence, p: [usize; {n}], labels: &mut Labels) {{ let mut lab = [0u16; {n}]; {p}_mpe(&{P}gather(e, &ALL_UNKNOWN, p), &mut lab); {P}scatter_labels(labels, &lab, p); }}",
-            p = tpl[k].0,
-            n = spn.num_vars()
+            "#[inline(never)] fn {p}_lw(e: &Evidence, p: [usize; {n}], labels: &mut Labels) {{ let mut lab = [0u16; {n}]; {p}_mpe(&{P}gather(e, &ALL_UNKNOWN, p), &mut lab); {P}scatter_labels(labels, &lab, p); }}"
         );
     }
-    let chunks: Vec<&[Unique]> = uniques.chunks(options.chunk_size).collect();
-    let mut chunk_start = 0usize;
+    let name_of = |it: &Item| &tpl[uniques[it.members()[0]].template].0;
+    let chunks = chunk_items(&items, options.chunk_size);
     // Value passes.
-    for (j, ch) in chunks.iter().enumerate() {
+    for (j, range) in chunks.iter().enumerate() {
+        let ch = &items[range.clone()];
         for (max, name) in [(false, "lp"), (true, "mpv")] {
+            let (fv, fs) = if max { ("mpvv", "mpv") } else { ("fwdv", "fwd") };
+            let call = |it: &Item| match it {
+                Item::Group(m) => format!(
+                    "{}_{fv}(&{P}gather_lanes_{t}(e, labels, {}))",
+                    name_of(it),
+                    lane_places(&uniques, m, lanes)
+                ),
+                Item::Single(u) => format!(
+                    "{}_{fs}(&{P}gather(e, labels, {}))",
+                    name_of(it),
+                    places(&uniques[*u].places)
+                ),
+            };
             let mut body = String::new();
-            value_chunk(ch, &tpl, d_count, max, &mut body);
+            value_chunk(ch, &uniques, &tpl, d_count, max, &call, &mut body);
             let _ = writeln!(
                 s,
                 "#[inline(never)] fn {name}_chunk{j}(e: &Evidence, labels: &Labels, lp: &mut [f64; NUM_DECOMPOSITIONS]) {{ {body} }}"
             );
         }
         if single_pass {
-            let off = &offsets[chunk_start..chunk_start + ch.len()];
-            let call = |i: usize, u: &Unique| {
-                format!(
+            // Lane groups are identified by their first member's offset.
+            let call = |it: &Item| match it {
+                Item::Group(m) => format!(
+                    "{}_pgv(e, {}, g, {})",
+                    name_of(it),
+                    lane_places(&uniques, m, lanes),
+                    offsets[m[0]]
+                ),
+                Item::Single(u) => format!(
                     "{}_pg(e, {}, g, {})",
-                    tpl[u.template].0,
-                    places(&u.places),
-                    off[i]
-                )
+                    name_of(it),
+                    places(&uniques[*u].places),
+                    offsets[*u]
+                ),
             };
             let mut body = String::new();
-            value_chunk_with(ch, &tpl, d_count, false, &call, &mut body);
+            value_chunk(ch, &uniques, &tpl, d_count, false, &call, &mut body);
             let _ = writeln!(
                 s,
                 "#[inline(never)] fn mg_chunk{j}(e: &Evidence, lp: &mut [f64; NUM_DECOMPOSITIONS], g: &mut [[{t}; NUM_CLASSES]; {rows}]) {{ {body} }}"
             );
             let mut body = String::new();
-            for (u, o) in ch.iter().zip(off) {
-                let ws: Vec<String> = u.decs.iter().map(|d| format!("w[{d}]")).collect();
-                let _ = writeln!(
-                    body,
-                    "{}_sg(g, {o}, {}, {}, out);",
-                    tpl[u.template].0,
-                    ws.join(" + "),
-                    places(&u.places)
-                );
+            for it in ch.iter() {
+                for &u in it.members() {
+                    let _ = writeln!(
+                        body,
+                        "{}_sg(g, {}, {}, {}, out);",
+                        name_of(it),
+                        offsets[u],
+                        weight_sum(&uniques[u]),
+                        places(&uniques[u].places)
+                    );
+                }
             }
             let _ = writeln!(
                 s,
                 "#[inline(never)] fn sc_chunk{j}(g: &[[{t}; NUM_CLASSES]; {rows}], w: &[{t}; NUM_DECOMPOSITIONS], out: &mut Marginals) {{ {body} }}"
             );
-            chunk_start += ch.len();
             continue;
         }
         // Posterior pass.
         let mut body = String::new();
-        for u in ch.iter() {
-            let (name, _) = &tpl[u.template];
-            let ws: Vec<String> = u.decs.iter().map(|d| format!("w[{d}]")).collect();
-            let _ = writeln!(
-                body,
-                "{name}_pw(e, {}, {}, out);",
-                ws.join(" + "),
-                places(&u.places)
-            );
+        for it in ch.iter() {
+            match it {
+                Item::Group(m) => {
+                    let ws: Vec<String> = (0..lanes)
+                        .map(|lane| match m.get(lane) {
+                            Some(&u) => weight_sum(&uniques[u]),
+                            None => format!("0.0{t}"),
+                        })
+                        .collect();
+                    let _ = writeln!(
+                        body,
+                        "{}_pwv(e, [{}], {}, out);",
+                        name_of(it),
+                        ws.join(", "),
+                        lane_places(&uniques, m, lanes)
+                    );
+                }
+                Item::Single(u) => {
+                    let _ = writeln!(
+                        body,
+                        "{}_pw(e, {}, {}, out);",
+                        name_of(it),
+                        weight_sum(&uniques[*u]),
+                        places(&uniques[*u].places)
+                    );
+                }
+            }
         }
         let _ = writeln!(
             s,

@@ -1,0 +1,454 @@
+//! Dense region kernels over SIMD *lanes*: one lane per template component.
+//!
+//! Generated code evaluates the components of one template in groups of [`LANES_F32`]
+//! (`f32`) or [`LANES_F64`] (`f64`): component `l` of a group lives in lane `l` of
+//! every vector, so each template weight is broadcast once and multiplied into a whole
+//! vector of components. Every operation is then a full-width SIMD operation whatever
+//! the (often odd) block sizes of the template — ten classes, five sums per region —
+//! and the weight tables are read once per group instead of once per component.
+//!
+//! Kernels compute a block's `M` sums `out[m] += Σ W[m][i][j][k]·a[i]·b[j]·c[k]` over
+//! the cartesian product of its `k ≤ 3` input vectors, with `W` in row-major order
+//! (last input innermost), the layout of the generated `static` tables. Forward kernels
+//! ending in `k` keep the partial contractions for the matching backward kernel, which
+//! accumulates the adjoints of the inputs from the adjoint `g` of the outputs. `*_max`
+//! kernels are the max-product versions (`out[m] = max(out[m], max W·a·b·c)`).
+//!
+//! The vector types come from the `wide` crate: 256-bit AVX(+FMA) operations when the
+//! target has them (e.g. `-C target-cpu=x86-64-v3` or `native`), pairs of SSE2 or NEON
+//! operations otherwise, and plain arrays on targets without SIMD. Multiply-adds are
+//! fused only where the target has FMA, so results differ between targets by rounding.
+
+use core::ops::{Add, AddAssign, Mul};
+
+use super::Real;
+
+/// Components per group in `f32` code (one 256-bit vector).
+pub const LANES_F32: usize = 8;
+/// Components per group in `f64` code (one 256-bit vector).
+pub const LANES_F64: usize = 4;
+
+/// A vector of `f32` components.
+pub type Lanes32 = wide::f32x8;
+/// A vector of `f64` components.
+pub type Lanes64 = wide::f64x4;
+
+/// A SIMD vector with one lane per component (see the module docs).
+pub trait Lanes: Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign {
+    /// The scalar of one lane.
+    type Scalar: Real;
+    /// All lanes `0`.
+    const ZERO: Self;
+    /// All lanes `s`.
+    fn splat(s: Self::Scalar) -> Self;
+    /// `self·a + b` per lane (fused where the target has FMA).
+    fn mul_add(self, a: Self, b: Self) -> Self;
+    /// Lane-wise maximum (inputs are never NaN here).
+    fn max(self, o: Self) -> Self;
+}
+
+impl Lanes for Lanes32 {
+    type Scalar = f32;
+    const ZERO: Self = wide::f32x8::ZERO;
+    #[inline(always)]
+    fn splat(s: f32) -> Self {
+        wide::f32x8::splat(s)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        wide::f32x8::mul_add(self, a, b)
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        self.fast_max(o)
+    }
+}
+
+impl Lanes for Lanes64 {
+    type Scalar = f64;
+    const ZERO: Self = wide::f64x4::ZERO;
+    #[inline(always)]
+    fn splat(s: f64) -> Self {
+        wide::f64x4::splat(s)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        wide::f64x4::mul_add(self, a, b)
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        self.fast_max(o)
+    }
+}
+
+/// `out[m] += Σ_i w[m][i]·a[i]`.
+#[inline(never)]
+pub fn v1_fwd<V: Lanes, const M: usize, const A: usize>(
+    w: &[[V::Scalar; A]; M],
+    a: &[V; A],
+    out: &mut [V; M],
+) {
+    for (o, wm) in out.iter_mut().zip(w) {
+        let mut acc = V::ZERO;
+        for (&x, ai) in wm.iter().zip(a) {
+            acc = V::splat(x).mul_add(*ai, acc);
+        }
+        *o += acc;
+    }
+}
+
+/// Adjoint of [`v1_fwd`]: `ga[i] += Σ_m w[m][i]·g[m]`.
+#[inline(never)]
+pub fn v1_bwd<V: Lanes, const M: usize, const A: usize>(
+    w: &[[V::Scalar; A]; M],
+    g: &[V; M],
+    ga: &mut [V; A],
+) {
+    let mut acc = *ga;
+    for (wm, gm) in w.iter().zip(g) {
+        for (&x, o) in wm.iter().zip(acc.iter_mut()) {
+            *o = V::splat(x).mul_add(*gm, *o);
+        }
+    }
+    *ga = acc;
+}
+
+/// `out[m] = max(out[m], max_i w[m][i]·a[i])`.
+#[inline(never)]
+pub fn v1_max<V: Lanes, const M: usize, const A: usize>(
+    w: &[[V::Scalar; A]; M],
+    a: &[V; A],
+    out: &mut [V; M],
+) {
+    for (o, wm) in out.iter_mut().zip(w) {
+        let mut acc = *o;
+        for (&x, ai) in wm.iter().zip(a) {
+            acc = acc.max(V::splat(x) * *ai);
+        }
+        *o = acc;
+    }
+}
+
+/// Shared body of [`v2_fwd`] and [`v2_fwdk`]: keeps `u[m][i] = Σ_j w[m][i][j]·b[j]`.
+#[inline(always)]
+fn v2_body<V: Lanes, const M: usize, const A: usize, const B: usize>(
+    w: &[[[V::Scalar; B]; A]; M],
+    a: &[V; A],
+    b: &[V; B],
+    u: &mut [[V; A]; M],
+    out: &mut [V; M],
+) {
+    for ((wm, um), o) in w.iter().zip(u.iter_mut()).zip(out.iter_mut()) {
+        let mut om = V::ZERO;
+        for ((wi, ui), ai) in wm.iter().zip(um.iter_mut()).zip(a) {
+            let mut acc = V::ZERO;
+            for (&x, bj) in wi.iter().zip(b) {
+                acc = V::splat(x).mul_add(*bj, acc);
+            }
+            *ui = acc;
+            om = acc.mul_add(*ai, om);
+        }
+        *o += om;
+    }
+}
+
+/// `out[m] += Σ_{i,j} w[m][i][j]·a[i]·b[j]`.
+#[inline(never)]
+pub fn v2_fwd<V: Lanes, const M: usize, const A: usize, const B: usize>(
+    w: &[[[V::Scalar; B]; A]; M],
+    a: &[V; A],
+    b: &[V; B],
+    out: &mut [V; M],
+) {
+    let mut u = [[V::ZERO; A]; M];
+    v2_body(w, a, b, &mut u, out);
+}
+
+/// [`v2_fwd`] keeping `u[m][i] = Σ_j w[m][i][j]·b[j]` for [`v2_bwd`].
+#[inline(never)]
+pub fn v2_fwdk<V: Lanes, const M: usize, const A: usize, const B: usize>(
+    w: &[[[V::Scalar; B]; A]; M],
+    a: &[V; A],
+    b: &[V; B],
+    u: &mut [[V; A]; M],
+    out: &mut [V; M],
+) {
+    v2_body(w, a, b, u, out);
+}
+
+/// Adjoints of [`v2_fwdk`] for the output adjoint `g`:
+/// `ga[i] += Σ_m g[m]·u[m][i]`, `gb[j] += Σ_{m,i} w[m][i][j]·g[m]·a[i]`.
+#[inline(never)]
+pub fn v2_bwd<V: Lanes, const M: usize, const A: usize, const B: usize>(
+    w: &[[[V::Scalar; B]; A]; M],
+    a: &[V; A],
+    u: &[[V; A]; M],
+    g: &[V; M],
+    ga: &mut [V; A],
+    gb: &mut [V; B],
+) {
+    let mut accb = *gb;
+    for ((wm, um), gm) in w.iter().zip(u).zip(g) {
+        for ((wi, ui), (ai, gai)) in wm.iter().zip(um).zip(a.iter().zip(ga.iter_mut())) {
+            *gai = gm.mul_add(*ui, *gai);
+            let h = *gm * *ai;
+            for (&x, o) in wi.iter().zip(accb.iter_mut()) {
+                *o = V::splat(x).mul_add(h, *o);
+            }
+        }
+    }
+    *gb = accb;
+}
+
+/// `out[m] = max(out[m], max_{i,j} w[m][i][j]·a[i]·b[j])`.
+#[inline(never)]
+pub fn v2_max<V: Lanes, const M: usize, const A: usize, const B: usize>(
+    w: &[[[V::Scalar; B]; A]; M],
+    a: &[V; A],
+    b: &[V; B],
+    out: &mut [V; M],
+) {
+    for (wm, o) in w.iter().zip(out.iter_mut()) {
+        let mut om = *o;
+        for (wi, ai) in wm.iter().zip(a) {
+            let mut acc = V::ZERO;
+            for (&x, bj) in wi.iter().zip(b) {
+                acc = acc.max(V::splat(x) * *bj);
+            }
+            om = om.max(acc * *ai);
+        }
+        *o = om;
+    }
+}
+
+/// Shared body of [`v3_fwd`] and [`v3_fwdk`].
+#[inline(always)]
+fn v3_body<V: Lanes, const M: usize, const A: usize, const B: usize, const K: usize>(
+    w: &[[[[V::Scalar; K]; B]; A]; M],
+    (a, b, c): (&[V; A], &[V; B], &[V; K]),
+    u: &mut [[[V; B]; A]; M],
+    v: &mut [[V; A]; M],
+    out: &mut [V; M],
+) {
+    for (((wm, um), vm), o) in w
+        .iter()
+        .zip(u.iter_mut())
+        .zip(v.iter_mut())
+        .zip(out.iter_mut())
+    {
+        let mut om = V::ZERO;
+        for (((wi, ui), vi), ai) in wm.iter().zip(um.iter_mut()).zip(vm.iter_mut()).zip(a) {
+            let mut vv = V::ZERO;
+            for ((wj, uj), bj) in wi.iter().zip(ui.iter_mut()).zip(b) {
+                let mut acc = V::ZERO;
+                for (&x, ck) in wj.iter().zip(c) {
+                    acc = V::splat(x).mul_add(*ck, acc);
+                }
+                *uj = acc;
+                vv = acc.mul_add(*bj, vv);
+            }
+            *vi = vv;
+            om = vv.mul_add(*ai, om);
+        }
+        *o += om;
+    }
+}
+
+/// `out[m] += Σ_{i,j,k} w[m][i][j][k]·a[i]·b[j]·c[k]`.
+#[inline(never)]
+pub fn v3_fwd<V: Lanes, const M: usize, const A: usize, const B: usize, const K: usize>(
+    w: &[[[[V::Scalar; K]; B]; A]; M],
+    a: &[V; A],
+    b: &[V; B],
+    c: &[V; K],
+    out: &mut [V; M],
+) {
+    let mut u = [[[V::ZERO; B]; A]; M];
+    let mut v = [[V::ZERO; A]; M];
+    v3_body(w, (a, b, c), &mut u, &mut v, out);
+}
+
+/// [`v3_fwd`] keeping `u[m][i][j] = Σ_k w[m][i][j][k]·c[k]` and
+/// `v[m][i] = Σ_j u[m][i][j]·b[j]` for [`v3_bwd`].
+#[inline(never)]
+pub fn v3_fwdk<V: Lanes, const M: usize, const A: usize, const B: usize, const K: usize>(
+    w: &[[[[V::Scalar; K]; B]; A]; M],
+    (a, b, c): (&[V; A], &[V; B], &[V; K]),
+    u: &mut [[[V; B]; A]; M],
+    v: &mut [[V; A]; M],
+    out: &mut [V; M],
+) {
+    v3_body(w, (a, b, c), u, v, out);
+}
+
+/// Adjoints of [`v3_fwdk`] for the output adjoint `g`, added into `ga`, `gb`, `gc`.
+#[inline(never)]
+pub fn v3_bwd<V: Lanes, const M: usize, const A: usize, const B: usize, const K: usize>(
+    w: &[[[[V::Scalar; K]; B]; A]; M],
+    (a, b): (&[V; A], &[V; B]),
+    (u, v): (&[[[V; B]; A]; M], &[[V; A]; M]),
+    g: &[V; M],
+    (ga, gb, gc): (&mut [V; A], &mut [V; B], &mut [V; K]),
+) {
+    let mut accc = *gc;
+    for (((wm, um), vm), gm) in w.iter().zip(u).zip(v).zip(g) {
+        for (((wi, ui), vi), (ai, gai)) in wm
+            .iter()
+            .zip(um)
+            .zip(vm)
+            .zip(a.iter().zip(ga.iter_mut()))
+        {
+            *gai = gm.mul_add(*vi, *gai);
+            let h = *gm * *ai;
+            for (((wj, uj), bj), gbj) in wi.iter().zip(ui).zip(b).zip(gb.iter_mut()) {
+                *gbj = h.mul_add(*uj, *gbj);
+                let hh = h * *bj;
+                for (&x, o) in wj.iter().zip(accc.iter_mut()) {
+                    *o = V::splat(x).mul_add(hh, *o);
+                }
+            }
+        }
+    }
+    *gc = accc;
+}
+
+/// `out[m] = max(out[m], max_{i,j,k} w[m][i][j][k]·a[i]·b[j]·c[k])`.
+#[inline(never)]
+pub fn v3_max<V: Lanes, const M: usize, const A: usize, const B: usize, const K: usize>(
+    w: &[[[[V::Scalar; K]; B]; A]; M],
+    a: &[V; A],
+    b: &[V; B],
+    c: &[V; K],
+    out: &mut [V; M],
+) {
+    for (wm, o) in w.iter().zip(out.iter_mut()) {
+        let mut om = *o;
+        for (wi, ai) in wm.iter().zip(a) {
+            let mut vv = V::ZERO;
+            for (wj, bj) in wi.iter().zip(b) {
+                let mut acc = V::ZERO;
+                for (&x, ck) in wj.iter().zip(c) {
+                    acc = acc.max(V::splat(x) * *ck);
+                }
+                vv = vv.max(acc * *bj);
+            }
+            om = om.max(vv * *ai);
+        }
+        *o = om;
+    }
+}
+
+/// Local posteriors of one variable in every lane: `post[c] = x[c]·g[c]·inv`.
+#[inline(always)]
+pub fn post_lanes<V: Lanes, const C: usize>(x: &[V; C], g: &[V; C], inv: V, post: &mut [V; C]) {
+    for ((o, &a), &b) in post.iter_mut().zip(x).zip(g) {
+        *o = a * b * inv;
+    }
+}
+
+macro_rules! lane_flavour {
+    ($t:ident, $v:ident, $lanes:ident, $gather:ident, $store:ident, $scatter:ident,
+     $values:ident, $inv:ident) => {
+        /// The scaled evidence rows of the components of one group, lane `l` holding
+        /// component `p[l]` (see `gather`: rows scaled to a maximum of 1, one-hot
+        /// rows for labelled places).
+        #[inline(always)]
+        pub fn $gather<const N: usize, const C: usize, const K: usize>(
+            e: &[[$t; C]; N],
+            labels: &[u16; N],
+            p: [[usize; K]; $lanes],
+        ) -> [[$v; C]; K] {
+            let mut t = [[[0.0; $lanes]; C]; K];
+            for (l, &pl) in p.iter().enumerate() {
+                let x = super::gather(e, labels, pl);
+                for (tv, xv) in t.iter_mut().zip(&x) {
+                    for (tc, &xc) in tv.iter_mut().zip(xv) {
+                        if let Some(o) = tc.get_mut(l) {
+                            *o = xc;
+                        }
+                    }
+                }
+            }
+            let mut out = [[$v::ZERO; C]; K];
+            for (ov, tv) in out.iter_mut().zip(&t) {
+                for (oc, tc) in ov.iter_mut().zip(tv) {
+                    *oc = $v::from(*tc);
+                }
+            }
+            out
+        }
+
+        /// Stores the local posteriors of lane `l` at rows `off + l·K .. off + (l+1)·K`
+        /// of a scratch array (rows out of range are skipped).
+        #[inline(always)]
+        pub fn $store<const S: usize, const C: usize, const K: usize>(
+            g: &mut [[$t; C]; S],
+            off: usize,
+            post: &[[$v; C]; K],
+        ) {
+            for (v, pv) in post.iter().enumerate() {
+                for (c, pc) in pv.iter().enumerate() {
+                    for (l, &x) in pc.to_array().iter().enumerate() {
+                        if let Some(o) = g.get_mut(off + l * K + v).and_then(|r| r.get_mut(c)) {
+                            *o = x;
+                        }
+                    }
+                }
+            }
+        }
+
+        /// `out[p[l][i]] += w[l]·post[i]` (lane `l`) for every lane and component place.
+        #[inline(always)]
+        pub fn $scatter<const N: usize, const C: usize, const K: usize>(
+            out: &mut [[$t; C]; N],
+            w: [$t; $lanes],
+            post: &[[$v; C]; K],
+            p: [[usize; K]; $lanes],
+        ) {
+            for (v, pv) in post.iter().enumerate() {
+                for (c, pc) in pv.iter().enumerate() {
+                    let x = pc.to_array();
+                    for ((&xl, &wl), pl) in x.iter().zip(&w).zip(&p) {
+                        let Some(&q) = pl.get(v) else { continue };
+                        if let Some(o) = out.get_mut(q).and_then(|r| r.get_mut(c)) {
+                            *o += wl * xl;
+                        }
+                    }
+                }
+            }
+        }
+
+        /// The lanes of a vector as an array.
+        #[inline(always)]
+        pub fn $values(v: $v) -> [$t; $lanes] {
+            v.to_array()
+        }
+
+        /// `1 / v` per lane.
+        #[inline(always)]
+        pub fn $inv(v: $v) -> $v {
+            $v::splat(1.0) / v
+        }
+    };
+}
+
+lane_flavour!(
+    f32,
+    Lanes32,
+    LANES_F32,
+    gather_lanes_f32,
+    store_lanes_f32,
+    scatter_lanes_f32,
+    values_f32,
+    inv_lanes_f32
+);
+lane_flavour!(
+    f64,
+    Lanes64,
+    LANES_F64,
+    gather_lanes_f64,
+    store_lanes_f64,
+    scatter_lanes_f64,
+    values_f64,
+    inv_lanes_f64
+);

@@ -1,0 +1,402 @@
+//! Helpers called only by code that `graphspn-compiler` generates. Not part of the
+//! public API: names and signatures may change with any compiler release.
+//!
+//! Every helper is allocation-free, panic-free (no indexing with run-time
+//! indices; iterators only) and exists in an `_f32` and an `_f64` flavour.
+
+use crate::EvidenceError;
+
+pub use crate::compiled::{fixed, fixed_mut};
+
+/// Natural log in `f64` (`ln 0 = -inf`).
+#[inline]
+pub fn ln64(x: f64) -> f64 {
+    libm::log(x)
+}
+
+/// `e^x` in `f64`.
+#[inline]
+pub fn exp64(x: f64) -> f64 {
+    libm::exp(x)
+}
+
+/// `ln Σ_d e^{a_d}` in `f64`; `-inf` when every term is `-inf`. Relative error a few ulp
+/// of the result plus `ln` of the count's rounding (< 1e-15 absolute for D ≤ 1e6).
+#[inline]
+pub fn lse64<const D: usize>(a: &[f64; D]) -> f64 {
+    let m = a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if m == f64::NEG_INFINITY {
+        return m;
+    }
+    let s: f64 = a.iter().map(|&v| libm::exp(v - m)).sum();
+    m + libm::log(s)
+}
+
+/// Index of the largest entry, lowest index on ties (`0` for an all-NaN or empty array).
+#[inline]
+pub fn argmax64<const D: usize>(a: &[f64; D]) -> usize {
+    let mut best = 0;
+    let mut bv = f64::NEG_INFINITY;
+    for (i, &v) in a.iter().enumerate() {
+        if v > bv {
+            bv = v;
+            best = i;
+        }
+    }
+    best
+}
+
+/// Checks labels: each must be `< C` or `u16::MAX` (unknown). A bad label at place `p`
+/// is reported as `WrongShape { place: p, expected: C, found: label }`.
+pub fn check_labels<const N: usize>(
+    labels: &[u16; N],
+    classes: usize,
+) -> Result<(), EvidenceError> {
+    for (p, &l) in labels.iter().enumerate() {
+        if l != u16::MAX && usize::from(l) >= classes {
+            return Err(EvidenceError::WrongShape {
+                place: p,
+                expected: classes,
+                found: usize::from(l),
+            });
+        }
+    }
+    Ok(())
+}
+
+macro_rules! flavour {
+    ($t:ident, $ln:path, $exp:path,
+     $check:ident, $scale:ident, $prep:ident, $lnf:ident, $expf:ident, $dot:ident, $sum:ident,
+     $prod:ident, $lse:ident, $argmax:ident, $flow:ident, $axpy:ident, $weights:ident,
+     $lnrow:ident) => {
+        /// Validates evidence: every value finite and `≥ 0`, every row with some mass.
+        /// Errors name the place index and its id from `ids`.
+        pub fn $check<const N: usize, const C: usize>(
+            e: &[[$t; C]; N],
+            ids: &[u32; N],
+        ) -> Result<(), EvidenceError> {
+            for (p, (row, &id)) in e.iter().zip(ids).enumerate() {
+                let place_id = u64::from(id);
+                let mut mass = false;
+                for (class, &v) in row.iter().enumerate() {
+                    if !v.is_finite() {
+                        return Err(EvidenceError::NotFinite {
+                            place: p,
+                            place_id,
+                            class,
+                        });
+                    }
+                    if v < 0.0 {
+                        return Err(EvidenceError::Negative {
+                            place: p,
+                            place_id,
+                            class,
+                        });
+                    }
+                    mass |= v > 0.0;
+                }
+                if !mass {
+                    return Err(EvidenceError::NoMass { place: p, place_id });
+                }
+            }
+            Ok(())
+        }
+
+        /// `Σ_p ln s_p` in `f64`, where `s_p` is the largest value of row `p`, or the
+        /// value of its label when labelled (`label < C`). `-inf` when some `s_p = 0`.
+        pub fn $scale<const N: usize, const C: usize>(e: &[[$t; C]; N], labels: &[u16; N]) -> f64 {
+            let mut acc = 0.0f64;
+            for (row, &l) in e.iter().zip(labels) {
+                let s = match row.get(usize::from(l)) {
+                    Some(&v) => v,
+                    None => row.iter().copied().fold(0.0, $t::max),
+                };
+                acc += libm::log(f64::from(s));
+            }
+            acc
+        }
+
+        /// The scaled row `x = α / s` (largest entry exactly 1), or the one-hot row of
+        /// `label` when `label < C`.
+        #[inline(always)]
+        pub fn $prep<const C: usize>(row: &[$t; C], label: u16) -> [$t; C] {
+            let mut x = [0.0; C];
+            if usize::from(label) < C {
+                if let Some(v) = x.get_mut(usize::from(label)) {
+                    *v = 1.0;
+                }
+                return x;
+            }
+            let s = row.iter().copied().fold(0.0, $t::max);
+            let inv = 1.0 / s;
+            for (o, &v) in x.iter_mut().zip(row) {
+                *o = v * inv;
+            }
+            x
+        }
+
+        /// Natural log (`ln 0 = -inf`).
+        #[inline(always)]
+        pub fn $lnf(x: $t) -> $t {
+            $ln(x)
+        }
+
+        /// `e^x`.
+        #[inline(always)]
+        pub fn $expf(x: $t) -> $t {
+            $exp(x)
+        }
+
+        /// Elementwise natural log of every row.
+        #[inline(always)]
+        pub fn $lnrow<const N: usize, const C: usize>(x: &[[$t; C]; N]) -> [[$t; C]; N] {
+            let mut o = [[0.0; C]; N];
+            for (or, xr) in o.iter_mut().zip(x) {
+                for (a, &b) in or.iter_mut().zip(xr) {
+                    *a = $ln(b);
+                }
+            }
+            o
+        }
+
+        /// `Σ_j w_j v_j` with eight independent accumulators (vectorisable).
+        #[inline(always)]
+        pub fn $dot<const K: usize>(w: &[$t; K], v: &[$t; K]) -> $t {
+            let mut acc = [0.0 as $t; 8];
+            let wc = w.chunks_exact(8);
+            let vc = v.chunks_exact(8);
+            let mut tail = 0.0;
+            for (a, b) in wc.remainder().iter().zip(vc.remainder()) {
+                tail += a * b;
+            }
+            for (a, b) in wc.zip(vc) {
+                for ((s, x), y) in acc.iter_mut().zip(a).zip(b) {
+                    *s += x * y;
+                }
+            }
+            acc.iter().sum::<$t>() + tail
+        }
+
+        /// `Σ_j v_j`.
+        #[inline(always)]
+        pub fn $sum<const K: usize>(v: [$t; K]) -> $t {
+            v.iter().sum()
+        }
+
+        /// `Π_j v_j`.
+        #[inline(always)]
+        pub fn $prod<const K: usize>(v: [$t; K]) -> $t {
+            v.iter().product()
+        }
+
+        /// `ln Σ_j e^{a_j}`; `-inf` when all terms are `-inf` (never NaN for inputs
+        /// in `[-inf, +inf)`). Error: a few ulp of the result.
+        #[inline(always)]
+        pub fn $lse<const K: usize>(a: [$t; K]) -> $t {
+            let m = a.iter().copied().fold($t::NEG_INFINITY, $t::max);
+            if m == $t::NEG_INFINITY {
+                return m;
+            }
+            let s: $t = a.iter().map(|&v| $exp(v - m)).sum();
+            m + $ln(s)
+        }
+
+        /// Largest entry and its index, lowest index on ties.
+        #[inline(always)]
+        pub fn $argmax<const K: usize>(a: [$t; K]) -> ($t, u16) {
+            let mut best = 0u16;
+            let mut bv = $t::NEG_INFINITY;
+            for (i, &v) in a.iter().enumerate() {
+                if v > bv {
+                    bv = v;
+                    best = i as u16;
+                }
+            }
+            (bv, best)
+        }
+
+        /// Top-down flow through a log-space sum edge: `f · e^{a − v}` where `a` is the
+        /// child's weighted log value and `v` the parent's log value; `0` when the parent
+        /// is zero (`v = -inf`) or carries no flow.
+        #[inline(always)]
+        pub fn $flow(f: $t, a: $t, v: $t) -> $t {
+            if v == $t::NEG_INFINITY || f == 0.0 {
+                0.0
+            } else {
+                f * $exp(a - v)
+            }
+        }
+
+        /// `out += w · g`.
+        #[inline(always)]
+        pub fn $axpy<const C: usize>(out: &mut [$t; C], w: $t, g: &[$t; C]) {
+            for (o, &v) in out.iter_mut().zip(g) {
+                *o += w * v;
+            }
+        }
+
+        /// Posterior weight of each decomposition, `e^{ln(1/D) + lp_d − l̂}`.
+        #[inline]
+        pub fn $weights<const D: usize>(lp: &[f64; D], lhat: f64) -> [$t; D] {
+            let lnd = -libm::log(D as f64);
+            let mut w = [0.0; D];
+            for (o, &l) in w.iter_mut().zip(lp) {
+                *o = libm::exp(lnd + l - lhat) as $t;
+            }
+            w
+        }
+    };
+}
+
+flavour!(
+    f32,
+    libm::logf,
+    libm::expf,
+    check_f32,
+    scale_f32,
+    prep_f32,
+    ln_f32,
+    exp_f32,
+    dot_f32,
+    sum_f32,
+    prod_f32,
+    lse_f32,
+    argmax_f32,
+    flow_f32,
+    axpy_f32,
+    weights_f32,
+    ln_rows_f32
+);
+flavour!(
+    f64,
+    libm::log,
+    libm::exp,
+    check_f64,
+    scale_f64,
+    prep_f64,
+    ln_f64,
+    exp_f64,
+    dot_f64,
+    sum_f64,
+    prod_f64,
+    lse_f64,
+    argmax_f64,
+    flow_f64,
+    axpy_f64,
+    weights_f64,
+    ln_rows_f64
+);
+
+// ---------------------------------------------------------------------------
+// Dense region kernels: `lanes` (SIMD over groups of components: values, marginals,
+// max-product values) and `blocks` (one component: MPE backtracking).
+// ---------------------------------------------------------------------------
+
+mod blocks;
+mod lanes;
+
+pub use blocks::*;
+pub use lanes::*;
+
+/// The scalar types of generated code (`f32`, `f64`).
+pub trait Real:
+    Copy
+    + PartialOrd
+    + core::ops::Add<Output = Self>
+    + core::ops::Mul<Output = Self>
+    + core::ops::AddAssign
+    + core::ops::MulAssign
+    + core::ops::Div<Output = Self>
+{
+    /// `0`.
+    const ZERO: Self;
+    /// `1`.
+    const ONE: Self;
+}
+
+impl Real for f32 {
+    const ZERO: f32 = 0.0;
+    const ONE: f32 = 1.0;
+}
+
+impl Real for f64 {
+    const ZERO: f64 = 0.0;
+    const ONE: f64 = 1.0;
+}
+
+/// The scaled rows of places `p` (see `prep_f32`): `x = α/max α`, or the one-hot row of
+/// the place's label when it is `< C`. Out-of-range places give zero rows.
+#[inline(always)]
+pub fn gather<R: Real, const N: usize, const C: usize, const K: usize>(
+    e: &[[R; C]; N],
+    labels: &[u16; N],
+    p: [usize; K],
+) -> [[R; C]; K] {
+    let mut x = [[R::ZERO; C]; K];
+    for (xr, &q) in x.iter_mut().zip(&p) {
+        let (Some(row), Some(&l)) = (e.get(q), labels.get(q)) else {
+            continue;
+        };
+        if let Some(v) = xr.get_mut(usize::from(l)) {
+            *v = R::ONE;
+            continue;
+        }
+        let mut s = R::ZERO;
+        for &v in row {
+            if v > s {
+                s = v;
+            }
+        }
+        let inv = R::ONE / s;
+        for (o, &v) in xr.iter_mut().zip(row) {
+            *o = v * inv;
+        }
+    }
+    x
+}
+
+/// `out[p[i]] += w·g[i]` for every component place `i`.
+#[inline(always)]
+pub fn scatter_post<R: Real, const N: usize, const C: usize, const K: usize>(
+    out: &mut [[R; C]; N],
+    w: R,
+    g: &[[R; C]; K],
+    p: [usize; K],
+) {
+    for (gr, &q) in g.iter().zip(&p) {
+        if let Some(o) = out.get_mut(q) {
+            for (a, &v) in o.iter_mut().zip(gr) {
+                *a += w * v;
+            }
+        }
+    }
+}
+
+/// `labels[p[i]] = lab[i]` for every component place `i`.
+#[inline(always)]
+pub fn scatter_labels<const N: usize, const K: usize>(
+    labels: &mut [u16; N],
+    lab: &[u16; K],
+    p: [usize; K],
+) {
+    for (&l, &q) in lab.iter().zip(&p) {
+        if let Some(o) = labels.get_mut(q) {
+            *o = l;
+        }
+    }
+}
+
+/// Rows `off..off + K` of a scratch array (`None` when out of range).
+#[inline(always)]
+pub fn rows<T, const S: usize, const K: usize>(g: &[T; S], off: usize) -> Option<&[T; K]> {
+    g.get(off..).and_then(|r| r.first_chunk::<K>())
+}
+
+/// Mutable rows `off..off + K` of a scratch array (`None` when out of range).
+#[inline(always)]
+pub fn rows_mut<T, const S: usize, const K: usize>(
+    g: &mut [T; S],
+    off: usize,
+) -> Option<&mut [T; K]> {
+    g.get_mut(off..).and_then(|r| r.first_chunk_mut::<K>())
+}
