@@ -116,7 +116,7 @@ fn random_case(seed: u64, vectors: usize) -> Case {
         model,
         map,
         decs,
-        precision: if seed % 3 == 0 {
+        precision: if seed.is_multiple_of(3) {
             Precision::F64
         } else {
             Precision::F32

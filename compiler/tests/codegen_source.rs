@@ -143,9 +143,19 @@ fn dense_structures_use_kernels_and_stay_small() {
         let g = grid(4, 3, 10);
         let decs: Vec<_> = (0..3).map(|s| decompose(&g, &m.templates, s)).collect();
         let src = generate(&m, &g, &decs, &CodegenOptions::default()).unwrap();
-        // Every Star/Three/Pair template becomes block kernels, not per-node code.
+        // Every Star/Three/Pair template becomes lane-group block kernels (values,
+        // posteriors, max-product) plus one-component MPE kernels, not per-node code.
         for k in [
-            "d3_fwd", "d3_fwdk", "d3_bwd", "d3_max", "d3_maxa", "d3_back", "d2_fwd",
+            "v3_fwd",
+            "v3_fwdk",
+            "v3_bwd",
+            "v3_max",
+            "v2_fwd",
+            "v2_fwdk",
+            "v2_bwd",
+            "d3_maxa",
+            "d3_back",
+            "gather_lanes_f32",
         ] {
             assert!(src.contains(k), "no {k} in the generated code");
         }

@@ -302,11 +302,11 @@ fn pruning_keeps_a_valid_normalised_spn() {
     let mut live = vec![false; spn.nodes.len()];
     live[spn.root as usize] = true;
     for i in (0..spn.nodes.len()).rev() {
-        if live[i] {
-            if let Node::Sum { children, .. } | Node::Product { children } = &spn.nodes[i] {
-                for &c in children {
-                    live[c as usize] = true;
-                }
+        if live[i]
+            && let Node::Sum { children, .. } | Node::Product { children } = &spn.nodes[i]
+        {
+            for &c in children {
+                live[c as usize] = true;
             }
         }
     }

@@ -8,7 +8,7 @@ fn place(id: u32, class: Option<u16>) -> Place {
     Place {
         id,
         class,
-        placeholder: id % 3 == 0,
+        placeholder: id.is_multiple_of(3),
         x: id as f64 * 0.8,
         y: -(id as f64) / 3.0,
     }

@@ -187,7 +187,7 @@ mod tests {
             state ^= state >> 7;
             state ^= state << 17;
             // Uniform in [-200, 50), sometimes -inf.
-            if state % 17 == 0 {
+            if state.is_multiple_of(17) {
                 f32::NEG_INFINITY
             } else {
                 (state >> 11) as f32 / (1u64 << 53) as f32 * 250.0 - 200.0

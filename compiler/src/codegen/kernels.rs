@@ -17,9 +17,12 @@
 //! - the root is a sum; a variable's vector is its `C` leaves in class order.
 //!
 //! Blocks are then computed by the const-generic kernels of
-//! `graphspn_runtime::__private` (`d1_*`, `d2_*`, `d3_*`) with the weights in `static`
-//! arrays: generated template functions are a few calls, whatever the number of SPN
-//! edges. Templates that do not match keep the per-node code of `template.rs`.
+//! `graphspn_runtime::__private` with the weights in `static` arrays (row-major,
+//! `w[m][i][j][k]`): the lane kernels `v1_*`, `v2_*`, `v3_*` evaluate a group of
+//! components at once, one per SIMD lane (values, adjoints, max-product values), and
+//! the one-component `d*_maxa` / `d*_back` kernels backtrack MPE labellings. Generated
+//! template functions are a few calls, whatever the number of SPN edges. Templates
+//! that do not match keep the per-node code of `template.rs`.
 //!
 //! Kernels are used only for linear-space templates (see [`super::analysis`]): they
 //! compute exactly the same sums of products as the per-node code, in another order
@@ -253,7 +256,12 @@ impl KernelCode<'_> {
     }
 
     fn sig_xv(&self, l: &Lit) -> String {
-        format!("x: &[[{}; {}]; {}]", lane_type(l), self.plan.classes, self.plan.n)
+        format!(
+            "x: &[[{}; {}]; {}]",
+            lane_type(l),
+            self.plan.classes,
+            self.plan.n
+        )
     }
 
     /// `static` weight tables, one per segment, `w[m][i][j][k]` (row-major over the
@@ -279,12 +287,7 @@ impl KernelCode<'_> {
                     .iter()
                     .map(|wm| nest(&wm.iter().map(|&v| num(v)).collect::<Vec<_>>(), &seg.dims))
                     .collect();
-                let _ = writeln!(
-                    out,
-                    "static {}: {ty} = [{}];",
-                    self.w(b, s),
-                    rows.join(",")
-                );
+                let _ = writeln!(out, "static {}: {ty} = [{}];", self.w(b, s), rows.join(","));
             }
         }
     }
@@ -512,7 +515,7 @@ impl KernelCode<'_> {
 fn nest(flat: &[String], dims: &[usize]) -> String {
     match dims.split_first() {
         None => flat.first().cloned().unwrap_or_default(),
-        Some((_, rest)) if rest.is_empty() => format!("[{}]", flat.join(",")),
+        Some((_, [])) => format!("[{}]", flat.join(",")),
         Some((_, rest)) => {
             let inner: usize = rest.iter().product();
             let parts: Vec<String> = flat.chunks(inner).map(|c| nest(c, rest)).collect();

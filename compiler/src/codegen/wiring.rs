@@ -1,28 +1,38 @@
 //! The per-map part of the generated module: constants, the public API and the
 //! chunked wiring that calls the shared template functions for every component.
 //!
+//! # Lane groups
+//!
+//! Components are deduplicated across decompositions (same template and places) and
+//! ordered template by template. Components of a template with block kernels (see
+//! `kernels.rs`) are evaluated in *lane groups* of 8 (`f32`) or 4 (`f64`): one call
+//! computes the whole group, component `l` in SIMD lane `l`, so every weight is
+//! broadcast once per group. The last group of a template is padded with copies of
+//! its first component, whose results are ignored. Other templates (log space, or no
+//! block structure) are evaluated one component per call.
+//!
 //! # Passes and memory
 //!
 //! No scratch array grows with the map except the caller's own buffers:
-//! - *value pass* (`lp_chunk*`): every distinct component (same template and places,
-//!   deduplicated across decompositions) is evaluated once on its scaled evidence
-//!   rows and its value multiplied (linear templates, in `f64`, flushed into a log
-//!   before the product could underflow) or added (log templates) into `lp[d]` for
-//!   every decomposition `d` containing it;
+//! - *value pass* (`lp_chunk*`): every distinct component is evaluated once on its
+//!   scaled evidence rows and its value multiplied (linear templates, in `f64`,
+//!   flushed into a log before the product could underflow) or added (log templates)
+//!   into `lp[d]` for every decomposition `d` containing it;
 //! - *marginals*, single pass (when the scratch is at most [`SINGLE_PASS_BYTES`]):
 //!   every distinct component is evaluated once with its backward sweep
 //!   (`mg_chunk*`), its value accumulated into `lp` as above and its local posteriors
 //!   `m_k[i][c] = x_i[c]·∂T_k/∂x_i[c] / T_k` kept in a stack scratch (one row per
-//!   component place, `Σ_k |k|·C` scalars: about 42 KB for a 230-place map); once the
-//!   decomposition posteriors `w_d = e^{ln(1/D) + lp_d − ln Ŝ}` are known, `sc_chunk*`
-//!   adds `(Σ_{d ∋ k} w_d)·m_k` into `out`;
+//!   component place and lane, `Σ_k |k|·C` scalars plus padding: about 45 KB for a
+//!   230-place map); once the decomposition posteriors
+//!   `w_d = e^{ln(1/D) + lp_d − ln Ŝ}` are known, `sc_chunk*` adds
+//!   `(Σ_{d ∋ k} w_d)·m_k` into `out`;
 //! - *marginals*, two passes (larger maps): the value pass, then a posterior pass
 //!   (`post_chunk*`) evaluating every distinct component again with its backward
 //!   sweep and adding its weighted local posteriors into `out` directly. Recomputing
 //!   the forward sweep costs about a third more arithmetic than storing per-component
 //!   posteriors, which would need `D·N·C` scalars (2 MB at 10k places).
-//! - MPE: a max-product value pass, then only the best decomposition's components
-//!   are re-run with backtracking to write the labels.
+//! - MPE: a max-product value pass (lane groups), then only the best decomposition's
+//!   components are re-run one by one with backtracking to write the labels.
 
 use std::fmt::Write;
 
@@ -144,9 +154,10 @@ fn value_chunk(
     // log10 of the current product bound, per decomposition.
     let mut bound = vec![0.0f64; d_count];
     let mut touched = vec![false; d_count];
-    let uses_q = chunk.iter().flat_map(Item::members).any(|&u| {
-        matches!(tpl[uniques[u].template].1, Numerics::Linear { .. })
-    });
+    let uses_q = chunk
+        .iter()
+        .flat_map(Item::members)
+        .any(|&u| matches!(tpl[uniques[u].template].1, Numerics::Linear { .. }));
     if uses_q {
         let _ = writeln!(body, "let mut q = [1.0f64; {d_count}];");
     }
@@ -373,7 +384,11 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
     for (j, range) in chunks.iter().enumerate() {
         let ch = &items[range.clone()];
         for (max, name) in [(false, "lp"), (true, "mpv")] {
-            let (fv, fs) = if max { ("mpvv", "mpv") } else { ("fwdv", "fwd") };
+            let (fv, fs) = if max {
+                ("mpvv", "mpv")
+            } else {
+                ("fwdv", "fwd")
+            };
             let call = |it: &Item| match it {
                 Item::Group(m) => format!(
                     "{}_{fv}(&{P}gather_lanes_{t}(e, labels, {}))",

@@ -179,14 +179,14 @@ impl Evaluator {
             });
         }
         for (var, (f, &k)) in fixed.iter().zip(&self.classes).enumerate() {
-            if let Some(class) = *f {
-                if class >= k {
-                    return Err(InferenceError::FixedClassOutOfRange {
-                        var,
-                        class,
-                        classes: k,
-                    });
-                }
+            if let Some(class) = *f
+                && class >= k
+            {
+                return Err(InferenceError::FixedClassOutOfRange {
+                    var,
+                    class,
+                    classes: k,
+                });
             }
         }
         evidence.validate(&self.classes)?;

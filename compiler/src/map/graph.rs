@@ -217,14 +217,14 @@ impl TopoMap {
 }
 
 fn check_place(p: &Place, classes: &ClassSet) -> Result<(), MapError> {
-    if let Some(c) = p.class {
-        if c as usize >= classes.len() {
-            return Err(MapError::ClassOutOfRange {
-                id: p.id,
-                class: c,
-                num_classes: classes.len(),
-            });
-        }
+    if let Some(c) = p.class
+        && c as usize >= classes.len()
+    {
+        return Err(MapError::ClassOutOfRange {
+            id: p.id,
+            class: c,
+            num_classes: classes.len(),
+        });
     }
     if !p.x.is_finite() || !p.y.is_finite() {
         return Err(MapError::NonFinitePose {

@@ -193,13 +193,13 @@ impl TopoMap {
     /// the place id of an invalid place or edge.
     pub fn from_json(text: &str) -> Result<TopoMap, MapError> {
         // Check the version first so a future format gets a clear message.
-        if let Ok(v) = serde_json::from_str::<VersionOnly>(text) {
-            if v.format != MAP_FORMAT {
-                return Err(MapError::FormatVersion {
-                    found: v.format,
-                    supported: MAP_FORMAT,
-                });
-            }
+        if let Ok(v) = serde_json::from_str::<VersionOnly>(text)
+            && v.format != MAP_FORMAT
+        {
+            return Err(MapError::FormatVersion {
+                found: v.format,
+                supported: MAP_FORMAT,
+            });
         }
         let file: MapFile = serde_json::from_str(text).map_err(json_error)?;
         let classes = ClassSet::new(file.classes).map_err(MapError::Classes)?;

@@ -54,10 +54,10 @@ impl MapStats {
                 s.degree_hist[d] += 1;
                 let p = m.place(i);
                 s.placeholders += usize::from(p.placeholder);
-                if let Some(c) = p.class {
-                    if let Some(n) = s.class_counts.get_mut(c as usize) {
-                        *n += 1;
-                    }
+                if let Some(c) = p.class
+                    && let Some(n) = s.class_counts.get_mut(c as usize)
+                {
+                    *n += 1;
                 }
             }
         }

@@ -280,15 +280,16 @@ fn build_floor(p: &SyntheticParams, corridors: i32, length: i32, rng: &mut ChaCh
                     for ddx in -1..=1 {
                         let diag = ddx != 0;
                         let keep = |rng: &mut ChaCha8Rng| !diag || rng.random_bool(pd);
-                        if let Some(&c) = f.at.get(&(dx0 + ddx, wall - side)) {
-                            if keep(rng) {
-                                f.link(dw, c);
-                            }
+                        if let Some(&c) = f.at.get(&(dx0 + ddx, wall - side))
+                            && keep(rng)
+                        {
+                            f.link(dw, c);
                         }
-                        if let Some(&r) = f.at.get(&(dx0 + ddx, row(0))) {
-                            if f.cells[r].class == class && keep(rng) {
-                                f.link(dw, r);
-                            }
+                        if let Some(&r) = f.at.get(&(dx0 + ddx, row(0)))
+                            && f.cells[r].class == class
+                            && keep(rng)
+                        {
+                            f.link(dw, r);
                         }
                     }
                 }

@@ -112,11 +112,11 @@ impl<R: Rng> Gen<'_, R> {
             scope.to_vec(),
             scope.iter().map(|&v| allowed[v as usize].clone()).collect(),
         );
-        if let Some(existing) = self.cache.get(&key) {
-            if self.rng.random_bool(self.params.share_prob.clamp(0.0, 1.0)) {
-                let i = self.rng.random_range(0..existing.len());
-                return existing[i];
-            }
+        if let Some(existing) = self.cache.get(&key)
+            && self.rng.random_bool(self.params.share_prob.clamp(0.0, 1.0))
+        {
+            let i = self.rng.random_range(0..existing.len());
+            return existing[i];
         }
         let id = self.build_new(scope, allowed, depth);
         self.cache.entry(key).or_default().push(id);

@@ -292,11 +292,8 @@ pub fn v3_bwd<V: Lanes, const M: usize, const A: usize, const B: usize, const K:
 ) {
     let mut accc = *gc;
     for (((wm, um), vm), gm) in w.iter().zip(u).zip(v).zip(g) {
-        for (((wi, ui), vi), (ai, gai)) in wm
-            .iter()
-            .zip(um)
-            .zip(vm)
-            .zip(a.iter().zip(ga.iter_mut()))
+        for (((wi, ui), vi), (ai, gai)) in
+            wm.iter().zip(um).zip(vm).zip(a.iter().zip(ga.iter_mut()))
         {
             *gai = gm.mul_add(*vi, *gai);
             let h = *gm * *ai;
