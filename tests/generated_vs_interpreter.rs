@@ -12,7 +12,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::{Case, case_evidence, check_case, differential};
-use graphspn::codegen::{Builder, Precision};
+use graphspn::codegen::{Builder, DEFAULT_STACK_BYTES, Precision};
 use graphspn::decompose::{DecompositionParams, decompose_best};
 use graphspn::learn::Model;
 use graphspn::map::cold;
@@ -76,6 +76,7 @@ fn demo_floor_matches_interpreter() {
         precision: Precision::F32,
         vectors: env_usize("GRAPHSPN_DIFF_VECTORS", VECTORS),
         seed: 1,
+        max_stack_bytes: DEFAULT_STACK_BYTES,
     };
     let evs = case_evidence(&case);
     let (n, c) = (demo_floor::NUM_PLACES, demo_floor::NUM_CLASSES);
@@ -153,21 +154,27 @@ fn cold_maps_match_interpreter() {
             },
         )
         .unwrap();
-        // The first compiled map is also checked in f64.
-        let precisions: &[Precision] = if cases.is_empty() {
-            &[Precision::F32, Precision::F64]
+        // The first compiled map is also checked in f64 and with two-pass marginals
+        // (the form maps get when their posteriors exceed the stack budget).
+        let variants: &[(Precision, usize, &str)] = if cases.is_empty() {
+            &[
+                (Precision::F32, DEFAULT_STACK_BYTES, ""),
+                (Precision::F64, DEFAULT_STACK_BYTES, ""),
+                (Precision::F32, 0, "_two_pass"),
+            ]
         } else {
-            &[Precision::F32]
+            &[(Precision::F32, DEFAULT_STACK_BYTES, "")]
         };
-        for &precision in precisions {
+        for &(precision, max_stack_bytes, suffix) in variants {
             cases.push(Case {
-                name: format!("{}_{precision:?}", module_name(path)).to_lowercase(),
+                name: format!("{}_{precision:?}{suffix}", module_name(path)).to_lowercase(),
                 model: model.clone(),
                 map: map.clone(),
                 decs: decs.clone(),
                 precision,
                 vectors,
                 seed,
+                max_stack_bytes,
             });
         }
     }

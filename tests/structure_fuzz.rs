@@ -1,6 +1,6 @@
 //! Structure fuzzing: random models (random templates via `Template::custom`, random
-//! class counts, random layered template SPNs with exact-zero and skewed
-//! weights) on random connected maps, compiled into one temporary crate, built, run
+//! class counts, random layered or dense template SPNs with exact-zero and skewed
+//! weights, one- and two-pass marginals) on random connected maps, compiled into one temporary crate, built, run
 //! and compared with the interpreter. Seeds are printed with every failure.
 //!
 //! Scale up: `GRAPHSPN_FUZZ_STRUCTURES=5000` (built in batches of [`BATCH`] modules per
@@ -9,10 +9,10 @@
 mod common;
 
 use common::{Case, differential};
-use graphspn::codegen::Precision;
+use graphspn::codegen::{CodegenOptions, DEFAULT_STACK_BYTES, Precision, generate};
 use graphspn::decompose::synthetic::random_connected_map;
 use graphspn::decompose::{DecompositionParams, decompose_best};
-use graphspn::learn::Model;
+use graphspn::learn::{DenseParams, Model, dense_structure, uniform_spn};
 use graphspn::map::ClassSet;
 use graphspn::spn::random::layered_spn;
 use graphspn::spn::{Node, Spn};
@@ -49,10 +49,32 @@ fn random_template(rng: &mut ChaCha8Rng, name: String, k: usize) -> Template {
     Template::custom(name, k, &edges).expect("a connected template")
 }
 
-/// A layered SPN with some sum weights set to exactly 0 (one positive kept; weights
-/// renormalised, as the interpreter requires), sometimes very skewed.
+/// A random template SPN: half the time a layered SPN (per-node code), half the
+/// time a dense region structure with random sizes (block kernels in SIMD lane
+/// groups); either way with some sum weights set to exactly 0 (one positive kept;
+/// weights renormalised, as the interpreter requires), sometimes very skewed.
 fn random_template_spn(rng: &mut ChaCha8Rng, vars: usize, classes: u32) -> Spn {
-    let mut spn = layered_spn(rng.random(), vars, classes, rng.random_range(1..=3));
+    let mut spn = if rng.random_bool(0.5) {
+        layered_spn(rng.random(), vars, classes, rng.random_range(1..=3))
+    } else if vars == 1 {
+        uniform_spn(1, classes).expect("a one-variable SPN")
+    } else {
+        let params = DenseParams {
+            decompositions: rng.random_range(1..=2),
+            subsets: rng.random_range(2..=3),
+            sums: rng.random_range(1..=4),
+            balanced: rng.random_bool(0.5),
+            ..DenseParams::default()
+        };
+        dense_structure(vars, classes, &params, rng.random()).expect("a dense structure")
+    };
+    for node in spn.nodes.iter_mut() {
+        if let Node::Sum { weights, .. } = node {
+            weights
+                .iter_mut()
+                .for_each(|w| *w = rng.random_range(0.05..1.0));
+        }
+    }
     let zero_p = if rng.random_bool(0.5) { 0.25 } else { 0.0 };
     let skew = rng.random_bool(0.3);
     for node in spn.nodes.iter_mut() {
@@ -123,6 +145,12 @@ fn random_case(seed: u64, vectors: usize) -> Case {
         },
         vectors,
         seed,
+        // Every fourth structure takes the two-pass marginals.
+        max_stack_bytes: if seed % 4 == 1 {
+            0
+        } else {
+            DEFAULT_STACK_BYTES
+        },
     }
 }
 
@@ -133,12 +161,25 @@ fn random_structures_match_interpreter() {
     let seeds: Vec<u64> = (0..total as u64).collect();
     for batch in seeds.chunks(BATCH) {
         let cases: Vec<Case> = batch.iter().map(|&s| random_case(s, vectors)).collect();
+        // The batch must exercise both code paths of the generator: lane-group kernels
+        // (dense templates in linear space) and per-node code.
+        let (mut lanes, mut per_node) = (0, 0);
+        for c in &cases {
+            let opts = CodegenOptions {
+                precision: c.precision,
+                ..Default::default()
+            };
+            let src = generate(&c.model, &c.map, &c.decs, &opts).expect("generate");
+            lanes += usize::from(src.contains("_fwdv("));
+            per_node += usize::from(src.contains("_fwd(x: &[["));
+        }
         eprintln!(
-            "structures {}..={}: {} places in all",
-            batch[0],
-            batch[batch.len() - 1],
-            cases.iter().map(|c| c.map.num_places()).sum::<usize>()
+            "of {} structures, {lanes} use lane-group kernels and {per_node} per-node code",
+            cases.len()
         );
+        if cases.len() >= 8 {
+            assert!(lanes > 0 && per_node > 0, "one code path is not fuzzed");
+        }
         differential("structure_fuzz", &cases);
     }
 }

@@ -1,21 +1,17 @@
 //! Code size, release build time and run time of generated code as maps grow, and the
 //! speed-up over the interpreter on the largest COLD map.
 //!
-//! Model: `$GRAPHSPN_MODEL`, else `/work/briefs/model_fs.json` when it exists, else a
-//! dense model with the trained structure (symmetric Star/Three/Pair with the authors'
-//! parameters, random weights, 10 classes). Maps: synthetic office floors
+//! Model: `$GRAPHSPN_MODEL`, else the demo model the `generated` crate ships
+//! (`generated/demo/model.json`, trained on all COLD maps). Maps: synthetic office floors
 //! (`map::synthetic`) of about 100, 1,000 and 10,000 places (`CODEGEN_SIZES` to
 //! choose), plus Saarbrucken's largest COLD map when `GRAPHSPN_DATA` is set; each with 5
 //! decompositions from the real decomposer (`decompose_best`, 15 candidates).
 //! For every map a crate holding just the generated module is built in release mode
-//! (`target/codegen-bench`, the runtime prebuilt so the time is the module's own) and
-//! run; the interpreter's marginals on the same instance SPN and evidence are timed in
+//! (`target/codegen-bench`, the runtime prebuilt so the time is the module's own; the
+//! workspace's `.cargo/config.toml`, i.e. its target CPU, is copied in) and run; the interpreter's marginals on the same instance SPN and evidence are timed in
 //! this process. `CODEGEN_NO_BUILD=1` only generates; `CODEGEN_KEEP=1` keeps the sources.
 //!
 //! Run: `cargo bench -p graphspn-compiler --bench codegen_scaling`.
-
-#[path = "../tests/codegen_common/mod.rs"]
-mod common;
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -76,15 +72,11 @@ fn evidence(n: usize, c: usize) -> Vec<Vec<f64>> {
 }
 
 fn load_model() -> (Model, String) {
-    let path =
-        std::env::var("GRAPHSPN_MODEL").unwrap_or_else(|_| "/work/briefs/model_fs.json".into());
-    match Model::load(&path) {
-        Ok(m) => (m, path),
-        Err(_) => (
-            common::dense_model(10, true, 1, 1),
-            "dense model (trained structure, random weights)".into(),
-        ),
-    }
+    let path = std::env::var("GRAPHSPN_MODEL").unwrap_or_else(|_| {
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../generated/demo/model.json").into()
+    });
+    let model = Model::load(&path).unwrap_or_else(|e| panic!("model {path}: {e}"));
+    (model, path)
 }
 
 fn maps(model: &Model) -> Vec<(String, TopoMap)> {
@@ -184,6 +176,12 @@ fn main() {
         )
         .expect("write");
         std::fs::create_dir_all(dir.path().join("src")).expect("mkdir");
+        // Same code generation flags as this workspace (target CPU).
+        let config = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../.cargo/config.toml");
+        if let Ok(text) = std::fs::read_to_string(&config) {
+            std::fs::create_dir_all(dir.path().join(".cargo")).expect("mkdir");
+            std::fs::write(dir.path().join(".cargo/config.toml"), text).expect("write");
+        }
         std::fs::write(dir.path().join("src/m.rs"), &src).expect("write");
         std::fs::write(dir.path().join("src/main.rs"), MAIN).expect("write");
         // Build the runtime first so the timing is the generated crate's alone.

@@ -27,6 +27,10 @@ pub struct CompileArgs {
     /// Generate f64 code (default f32).
     #[arg(long)]
     f64: bool,
+    /// Largest stack scratch (bytes) the generated `marginals` may use; above it the
+    /// marginals take two passes instead of one.
+    #[arg(long, default_value_t = graphspn::codegen::DEFAULT_STACK_BYTES)]
+    max_stack_bytes: usize,
     /// Name of the module the file is meant for (a Rust identifier; shown in the
     /// `include!` line printed at the end).
     #[arg(long, default_value = "map")]
@@ -58,6 +62,7 @@ pub fn run(args: CompileArgs) -> Result<()> {
         .module_name(&args.module)
         .out_file(&args.out)
         .cargo_metadata(false)
+        .max_stack_bytes(args.max_stack_bytes)
         .precision(if args.f64 {
             Precision::F64
         } else {

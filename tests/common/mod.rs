@@ -36,6 +36,8 @@ pub struct Case {
     pub vectors: usize,
     /// Seed of the evidence.
     pub seed: u64,
+    /// Stack budget of the generated marginals (`0`: always the two-pass form).
+    pub max_stack_bytes: usize,
 }
 
 /// Random evidence vectors including extremes; vector `v` uses kind `v % 6`:
@@ -204,6 +206,7 @@ pub fn differential(crate_name: &str, cases: &[Case]) {
     for case in cases {
         let opts = CodegenOptions {
             precision: case.precision,
+            max_stack_bytes: case.max_stack_bytes,
             ..Default::default()
         };
         let src = generate(&case.model, &case.map, &case.decs, &opts)

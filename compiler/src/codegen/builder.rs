@@ -210,6 +210,7 @@ pub struct Builder {
     out_dir: Option<PathBuf>,
     out_file: Option<PathBuf>,
     chunk_size: usize,
+    max_stack_bytes: usize,
     cargo_lines: bool,
 }
 
@@ -227,6 +228,7 @@ impl Builder {
             out_dir: None,
             out_file: None,
             chunk_size: CodegenOptions::default().chunk_size,
+            max_stack_bytes: CodegenOptions::default().max_stack_bytes,
             cargo_lines: true,
         }
     }
@@ -306,6 +308,14 @@ impl Builder {
         self
     }
 
+    /// Largest stack scratch (bytes) the generated `marginals` may use (default
+    /// 64 KiB; see [`CodegenOptions::max_stack_bytes`]). Firmware with a small stack
+    /// sets it lower: above the budget `marginals` takes two passes instead of one.
+    pub fn max_stack_bytes(mut self, bytes: usize) -> Self {
+        self.max_stack_bytes = bytes;
+        self
+    }
+
     /// Whether [`Builder::run`] prints `cargo:rerun-if-changed=` lines (default true;
     /// the command-line tool turns them off).
     pub fn cargo_metadata(mut self, on: bool) -> Self {
@@ -347,6 +357,7 @@ impl Builder {
         CodegenOptions {
             precision: self.precision,
             chunk_size: self.chunk_size,
+            max_stack_bytes: self.max_stack_bytes,
             model_label: self
                 .model
                 .file_name()

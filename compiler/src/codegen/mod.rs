@@ -55,7 +55,15 @@ pub struct CodegenOptions {
     pub chunk_size: usize,
     /// Name of the model written into the `@generated` header (e.g. its file name).
     pub model_label: String,
+    /// Largest stack scratch (bytes) `marginals` may use to keep every component's
+    /// local posteriors (one forward+backward pass per component). Maps needing more
+    /// run a value pass first and recompute the posteriors in a second pass, which
+    /// costs about a third more time. Default [`DEFAULT_STACK_BYTES`] (64 KiB).
+    pub max_stack_bytes: usize,
 }
+
+/// Default of [`CodegenOptions::max_stack_bytes`].
+pub const DEFAULT_STACK_BYTES: usize = 64 * 1024;
 
 impl Default for CodegenOptions {
     fn default() -> Self {
@@ -63,6 +71,7 @@ impl Default for CodegenOptions {
             precision: Precision::F32,
             chunk_size: 64,
             model_label: "model".into(),
+            max_stack_bytes: DEFAULT_STACK_BYTES,
         }
     }
 }

@@ -18,7 +18,7 @@
 //!   scaled evidence rows and its value multiplied (linear templates, in `f64`,
 //!   flushed into a log before the product could underflow) or added (log templates)
 //!   into `lp[d]` for every decomposition `d` containing it;
-//! - *marginals*, single pass (when the scratch is at most [`SINGLE_PASS_BYTES`]):
+//! - *marginals*, single pass (when the scratch is at most [`super::CodegenOptions::max_stack_bytes`]):
 //!   every distinct component is evaluated once with its backward sweep
 //!   (`mg_chunk*`), its value accumulated into `lp` as above and its local posteriors
 //!   `m_k[i][c] = x_i[c]·∂T_k/∂x_i[c] / T_k` kept in a stack scratch (one row per
@@ -45,11 +45,6 @@ use super::analysis::{Numerics, Unique, numerics, unique_components};
 use super::emit::{Lit, P};
 use super::kernels::{self, KernelCode};
 use super::template::TemplateCode;
-
-/// Largest stack scratch (bytes) for single-pass marginals: below it every unique
-/// component's local posteriors are kept, so each component is evaluated once (forward
-/// and backward); above it a value pass runs first and the posterior pass recomputes.
-pub const SINGLE_PASS_BYTES: usize = 64 * 1024;
 
 /// `[p0, p1, ...]`: a component's place indices as an array literal.
 fn places(p: &[usize]) -> String {
@@ -197,6 +192,37 @@ fn value_chunk(
     }
 }
 
+/// Chunk functions per wiring module: rustc compiles each module as its own codegen
+/// unit, so a large map's wiring builds in parallel and no single unit grows with
+/// the map (one unit holding all the wiring made build time superlinear).
+const CHUNKS_PER_PART: usize = 4;
+
+/// The text of the wiring modules `wiring_<k>`, each holding the chunk functions
+/// `k·CHUNKS_PER_PART .. (k+1)·CHUNKS_PER_PART` of every kind.
+#[derive(Default)]
+struct Parts(Vec<String>);
+
+impl Parts {
+    /// The text of the module holding chunk `j`.
+    fn text(&mut self, j: usize) -> &mut String {
+        let k = j / CHUNKS_PER_PART;
+        if self.0.len() <= k {
+            self.0.resize(k + 1, String::new());
+        }
+        &mut self.0[k]
+    }
+
+    /// Writes every module and a glob import of its functions into the parent.
+    fn emit(&self, s: &mut String) {
+        for (k, text) in self.0.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "mod wiring_{k} {{ use super::*; {text} }} use wiring_{k}::*;"
+            );
+        }
+    }
+}
+
 /// `w[d0] + w[d1] + ...`: the posterior weight of a component's decompositions.
 fn weight_sum(u: &Unique) -> String {
     let ws: Vec<String> = u.decs.iter().map(|d| format!("w[{d}]")).collect();
@@ -301,7 +327,7 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
         super::Precision::F32 => 4,
         super::Precision::F64 => 8,
     };
-    let single_pass = rows * c * scalar <= SINGLE_PASS_BYTES;
+    let single_pass = rows * c * scalar <= options.max_stack_bytes;
     // Template functions.
     for (k, spn) in model.spns.iter().enumerate() {
         if !used[k] {
@@ -380,6 +406,7 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
     }
     let name_of = |it: &Item| &tpl[uniques[it.members()[0]].template].0;
     let chunks = chunk_items(&items, options.chunk_size);
+    let mut parts = Parts::default();
     // Value passes.
     for (j, range) in chunks.iter().enumerate() {
         let ch = &items[range.clone()];
@@ -404,8 +431,8 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
             let mut body = String::new();
             value_chunk(ch, &uniques, &tpl, d_count, max, &call, &mut body);
             let _ = writeln!(
-                s,
-                "#[inline(never)] fn {name}_chunk{j}(e: &Evidence, labels: &Labels, lp: &mut [f64; NUM_DECOMPOSITIONS]) {{ {body} }}"
+                parts.text(j),
+                "#[inline(never)] pub(super) fn {name}_chunk{j}(e: &Evidence, labels: &Labels, lp: &mut [f64; NUM_DECOMPOSITIONS]) {{ {body} }}"
             );
         }
         if single_pass {
@@ -427,8 +454,8 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
             let mut body = String::new();
             value_chunk(ch, &uniques, &tpl, d_count, false, &call, &mut body);
             let _ = writeln!(
-                s,
-                "#[inline(never)] fn mg_chunk{j}(e: &Evidence, lp: &mut [f64; NUM_DECOMPOSITIONS], g: &mut [[{t}; NUM_CLASSES]; {rows}]) {{ {body} }}"
+                parts.text(j),
+                "#[inline(never)] pub(super) fn mg_chunk{j}(e: &Evidence, lp: &mut [f64; NUM_DECOMPOSITIONS], g: &mut [[{t}; NUM_CLASSES]; {rows}]) {{ {body} }}"
             );
             let mut body = String::new();
             for it in ch.iter() {
@@ -444,8 +471,8 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
                 }
             }
             let _ = writeln!(
-                s,
-                "#[inline(never)] fn sc_chunk{j}(g: &[[{t}; NUM_CLASSES]; {rows}], w: &[{t}; NUM_DECOMPOSITIONS], out: &mut Marginals) {{ {body} }}"
+                parts.text(j),
+                "#[inline(never)] pub(super) fn sc_chunk{j}(g: &[[{t}; NUM_CLASSES]; {rows}], w: &[{t}; NUM_DECOMPOSITIONS], out: &mut Marginals) {{ {body} }}"
             );
             continue;
         }
@@ -480,12 +507,13 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
             }
         }
         let _ = writeln!(
-            s,
-            "#[inline(never)] fn post_chunk{j}(e: &Evidence, w: &[{t}; NUM_DECOMPOSITIONS], out: &mut Marginals) {{ {body} }}"
+            parts.text(j),
+            "#[inline(never)] pub(super) fn post_chunk{j}(e: &Evidence, w: &[{t}; NUM_DECOMPOSITIONS], out: &mut Marginals) {{ {body} }}"
         );
     }
     // MPE labelling of one decomposition, chunked.
     let mut mpe_dispatch = String::new();
+    let mut mpe_count = 0usize;
     for (d, dec) in decs.iter().enumerate() {
         let mut calls = Vec::new();
         for (j, ch) in dec.components.chunks(options.chunk_size).enumerate() {
@@ -494,14 +522,16 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
                 let (name, _) = &tpl[comp.template];
                 let _ = writeln!(body, "{name}_lw(e, {}, labels);", places(&comp.places));
             }
+            mpe_count += 1;
             let _ = writeln!(
-                s,
-                "#[inline(never)] fn mpe_d{d}_chunk{j}(e: &Evidence, labels: &mut Labels) {{ {body} }}"
+                parts.text(mpe_count - 1),
+                "#[inline(never)] pub(super) fn mpe_d{d}_chunk{j}(e: &Evidence, labels: &mut Labels) {{ {body} }}"
             );
             calls.push(format!("mpe_d{d}_chunk{j}(e, labels);"));
         }
         let _ = writeln!(mpe_dispatch, "{d} => {{ {} }}", calls.join(" "));
     }
+    parts.emit(&mut s);
     let lp_calls: String = (0..chunks.len())
         .map(|j| format!("lp_chunk{j}(e, labels, &mut lp);"))
         .collect();
