@@ -246,6 +246,13 @@ pub fn module(
     for u in &uniques {
         used[u.template] = true;
     }
+    // Block structure of each used template (kernels), then linear or log space.
+    let mut plans: Vec<Option<kernels::Plan>> = model
+        .spns
+        .iter()
+        .zip(&used)
+        .map(|(spn, &u)| if u { kernels::plan(spn, c) } else { None })
+        .collect();
     let tpl: Vec<(String, Numerics)> = model
         .templates
         .iter()
@@ -253,13 +260,19 @@ pub fn module(
         .enumerate()
         .map(|(k, (tp, spn))| {
             let num = if used[k] {
-                numerics(spn, options.precision)
+                numerics(spn, options.precision, plans[k].as_ref())
             } else {
                 Numerics::Log
             };
             (format!("t{k}_{}", sanitize(&tp.name)), num)
         })
         .collect();
+    // Kernels (SIMD lane groups) only for linear-space templates.
+    for (plan, (_, num)) in plans.iter_mut().zip(&tpl) {
+        if !matches!(num, Numerics::Linear { .. }) {
+            *plan = None;
+        }
+    }
     let mut s = String::new();
     let ids: Vec<String> = map.places().map(|p| p.id.to_string()).collect();
     let names: Vec<String> = model
@@ -294,16 +307,6 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
         ids = ids.join(", "),
         names = names.join(", ")
     );
-    // Kernel plans: templates evaluated in SIMD lane groups.
-    let plans: Vec<Option<kernels::Plan>> = model
-        .spns
-        .iter()
-        .enumerate()
-        .map(|(k, spn)| match tpl[k].1 {
-            Numerics::Linear { .. } if used[k] => kernels::plan(spn, c),
-            _ => None,
-        })
-        .collect();
     let grouped: Vec<bool> = plans.iter().map(Option::is_some).collect();
     let lanes = kernels::lanes(&l);
     let lv = kernels::lane_type(&l);
