@@ -1,13 +1,9 @@
 //! Generated code vs the interpreter (instance SPN, `Evaluator`) on the same map and
-//! evidence, for `log_likelihood` and `marginals`; prints the speed-up ratios
+//! evidence, for `log_likelihood`, `marginals` and `mpe`, on the demo floor and on the
+//! largest COLD map (Saarbrücken seq2_night1, 230 places); prints the speed-up ratios
 //! measured in this run.
 //!
 //! `cargo bench --bench generated_vs_interpreter`
-//!
-//! The largest COLD map (Saarbrücken seq2_night1, 230 places) is benchmarked too once
-//! `graphspn-generated` compiles it: set `BUILD_LARGE = true` in `generated/build.rs`,
-//! then uncomment the `saarbrucken_seq2_night1` line in `main` below.
-// TODO(kernels): enable the 230-place map (see above).
 
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -44,6 +40,7 @@ macro_rules! bench_map {
         let ev = Evidence::from_rows(rows);
         let free = vec![None; g::NUM_PLACES];
         let mut out: g::Marginals = [[0.0; g::NUM_CLASSES]; g::NUM_PLACES];
+        let mut labels: g::Labels = [0; g::NUM_PLACES];
         let name = stringify!($m);
         let mut group = $c.benchmark_group(name);
         group.bench_function("generated/log_likelihood", |b| {
@@ -57,6 +54,12 @@ macro_rules! bench_map {
         });
         group.bench_function("interpreter/marginals", |b| {
             b.iter(|| eval.marginals(&free, black_box(&ev)))
+        });
+        group.bench_function("generated/mpe", |b| {
+            b.iter(|| g::mpe(black_box(&e), &mut labels))
+        });
+        group.bench_function("interpreter/mpe", |b| {
+            b.iter(|| eval.mpe(&free, black_box(&ev)))
         });
         group.finish();
         // Ratios from one timing pass each, same process.
@@ -81,8 +84,14 @@ macro_rules! bench_map {
         let im = time(&mut || {
             black_box(eval.marginals(&free, &ev).ok());
         });
+        let gp = time(&mut || {
+            black_box(g::mpe(black_box(&e), &mut labels).ok());
+        });
+        let ip = time(&mut || {
+            black_box(eval.mpe(&free, &ev).ok());
+        });
         $ratios.push(format!(
-            "{name} ({} places, {} instance edges): log_likelihood {:.1} µs vs {:.1} µs ({:.1}x), marginals {:.1} µs vs {:.1} µs ({:.1}x)",
+            "{name} ({} places, {} instance edges): log_likelihood {:.1} µs vs {:.1} µs ({:.1}x), marginals {:.1} µs vs {:.1} µs ({:.1}x), mpe {:.1} µs vs {:.1} µs ({:.1}x)",
             g::NUM_PLACES,
             eval.num_edges(),
             gl * 1e6,
@@ -90,7 +99,10 @@ macro_rules! bench_map {
             il / gl,
             gm * 1e6,
             im * 1e6,
-            im / gm
+            im / gm,
+            gp * 1e6,
+            ip * 1e6,
+            ip / gp
         ));
     }};
 }

@@ -146,7 +146,8 @@ fn dense_structures_use_kernels_and_stay_small() {
         let decs: Vec<_> = (0..3).map(|s| decompose(&g, &m.templates, s)).collect();
         let src = generate(&m, &g, &decs, &CodegenOptions::default()).unwrap();
         // Every Star/Three/Pair template becomes lane-group block kernels (values,
-        // posteriors, max-product) plus one-component MPE kernels, not per-node code.
+        // posteriors, max-product values and arguments) with per-lane MPE
+        // backtracking, not per-node code.
         for k in [
             "v3_fwd",
             "v3_fwdk",
@@ -155,7 +156,8 @@ fn dense_structures_use_kernels_and_stay_small() {
             "v2_fwd",
             "v2_fwdk",
             "v2_bwd",
-            "d3_maxa",
+            "v3_maxa",
+            "decode_arg",
             "d3_back",
             "gather_lanes_f32",
         ] {

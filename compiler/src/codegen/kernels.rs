@@ -39,6 +39,9 @@ use super::emit::{Lit, P};
 pub const MAX_ARITY: usize = 3;
 /// Largest number of weights of one segment (`M·ΠK`), to keep statics reasonable.
 pub const MAX_SEGMENT: usize = 1 << 20;
+/// Largest number of tuples (over all segments) of one block: MPE codes stay exact
+/// integers in `f32`.
+pub const MAX_BLOCK_TUPLES: usize = 1 << 24;
 
 /// One split of a block: the cartesian product of `inputs`.
 #[derive(Clone, Debug)]
@@ -199,6 +202,11 @@ pub fn plan(spn: &Spn, classes: usize) -> Option<Plan> {
         if seen.iter().any(|s| s.iter().any(|&v| !v)) {
             return None;
         }
+        // MPE records a block's best tuple as an `f32` code (segment offset plus tuple
+        // index), exact below 2^24.
+        if segs.iter().map(|s| s.weights[0].len()).sum::<usize>() > MAX_BLOCK_TUPLES {
+            return None;
+        }
         blocks.push(Block {
             sums: sums.clone(),
             segments: segs,
@@ -249,10 +257,6 @@ impl KernelCode<'_> {
         } else {
             format!("&{prefix}{}", g - self.plan.n)
         }
-    }
-
-    fn sig_x(&self, l: &Lit) -> String {
-        format!("x: &[[{}; {}]; {}]", l.t, self.plan.classes, self.plan.n)
     }
 
     fn sig_xv(&self, l: &Lit) -> String {
@@ -442,18 +446,22 @@ impl KernelCode<'_> {
         );
     }
 
-    /// `fn <prefix>_mpe(x, lab) -> value`: max-product value and the argmax labelling
-    /// of one component by backtracking (ties → lowest split, then lowest indices).
-    pub fn mpe(&self, l: &Lit, out: &mut String) {
+    /// `fn <prefix>_mpev(x, lab) -> [value; L]`: max-product values of a lane group
+    /// and, by backtracking in every lane (`<prefix>_bt`), the argmax labelling of each
+    /// component (ties → lowest split, then lowest indices).
+    pub fn mpev(&self, l: &Lit, out: &mut String) {
         let t = l.t;
+        let v = lane_type(l);
         let p = self.plan;
+        let lanes = lanes(l);
         let mut body = String::new();
         for (b, block) in p.blocks.iter().enumerate() {
             let m_len = block.sums.len();
             let _ = writeln!(
                 body,
-                "let mut b{b} = [-1.0{t}; {m_len}]; let mut a{b} = [[0u16; 4]; {m_len}];"
+                "let mut b{b} = [{v}::splat(-1.0); {m_len}]; let mut a{b} = [{v}::ZERO; {m_len}];"
             );
+            let mut offset = 0usize;
             for (s, seg) in block.segments.iter().enumerate() {
                 let ins: Vec<String> = seg.inputs.iter().map(|&g| self.vec_ref(g, "b")).collect();
                 let args = if ins.len() == 1 {
@@ -463,14 +471,63 @@ impl KernelCode<'_> {
                 };
                 let _ = writeln!(
                     body,
-                    "{P}d{}_maxa({s}, &{}, {args}, &mut b{b}, &mut a{b});",
+                    "{P}v{}_maxa({offset}.0, &{}, {args}, &mut b{b}, &mut a{b});",
                     seg.dims.len(),
                     self.w(b, s),
                 );
+                offset += seg.weights[0].len();
             }
         }
-        for v in 0..p.n {
-            let _ = writeln!(body, "let mut sx{v} = [false; {}];", p.classes);
+        let args: Vec<String> = (0..p.blocks.len()).map(|b| format!("&a{b}")).collect();
+        for lane in 0..lanes {
+            let _ = writeln!(
+                body,
+                "{}_bt({lane}, {}, &mut lab[{lane}]);",
+                self.prefix,
+                args.join(", ")
+            );
+        }
+        let _ = writeln!(
+            out,
+            "#[inline(never)] fn {}_mpev({}, lab: &mut [[u16; {}]; {lanes}]) -> [{t}; {lanes}] {{ {body} {P}values_{t}({}) }}",
+            self.prefix,
+            self.sig_xv(l),
+            p.n,
+            self.root()
+        );
+        self.bt(l, out);
+    }
+
+    /// `fn <prefix>_bt(lane, a0, a1, ..., lab)`: decodes the best tuples recorded in
+    /// `lane` and backtracks from the root to the selected class of every variable.
+    fn bt(&self, l: &Lit, out: &mut String) {
+        let v = lane_type(l);
+        let p = self.plan;
+        let mut params = vec!["l: usize".to_string()];
+        let mut body = String::new();
+        for (b, block) in p.blocks.iter().enumerate() {
+            let m_len = block.sums.len();
+            params.push(format!("a{b}: &[{v}; {m_len}]"));
+            let mut offset = 0usize;
+            let segs: Vec<String> = block
+                .segments
+                .iter()
+                .map(|seg| {
+                    let d = |k: usize| seg.dims.get(k).copied().unwrap_or(1);
+                    let text = format!("[{offset}, {}, {}, {}]", d(0), d(1), d(2));
+                    offset += seg.weights[0].len();
+                    text
+                })
+                .collect();
+            let _ = writeln!(
+                body,
+                "let a{b} = {P}decode_arg(a{b}, l, [{}]);",
+                segs.join(", ")
+            );
+        }
+        params.push(format!("lab: &mut [u16; {}]", p.n));
+        for var in 0..p.n {
+            let _ = writeln!(body, "let mut sx{var} = [false; {}];", p.classes);
         }
         for (b, block) in p.blocks.iter().enumerate() {
             let _ = writeln!(body, "let mut s{b} = [false; {}];", block.sums.len());
@@ -497,16 +554,14 @@ impl KernelCode<'_> {
                 );
             }
         }
-        for v in 0..p.n {
-            let _ = writeln!(body, "{P}sel_label(&sx{v}, &mut lab[{v}]);");
+        for var in 0..p.n {
+            let _ = writeln!(body, "{P}sel_label(&sx{var}, &mut lab[{var}]);");
         }
         let _ = writeln!(
             out,
-            "#[inline(never)] fn {}_mpe({}, lab: &mut [u16; {}]) -> {t} {{ {body} {} }}",
+            "#[inline(never)] fn {}_bt({}) {{ {body} }}",
             self.prefix,
-            self.sig_x(l),
-            p.n,
-            self.root()
+            params.join(", ")
         );
     }
 }

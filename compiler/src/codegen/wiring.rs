@@ -357,7 +357,11 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
             kc.fwdv(&l, &mut s);
             kc.postv(&l, &mut s);
             kc.mpvv(&l, &mut s);
-            kc.mpe(&l, &mut s);
+            kc.mpev(&l, &mut s);
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn {p}_lwv(e: &Evidence, p: [[usize; {n}]; {lanes}], labels: &mut Labels) {{ let mut lab = [[0u16; {n}]; {lanes}]; {p}_mpev(&{P}gather_lanes_{t}(e, &ALL_UNKNOWN, p), &mut lab); {P}scatter_labels_lanes(labels, &lab, p); }}"
+            );
             if !single_pass {
                 let _ = writeln!(
                     s,
@@ -384,6 +388,10 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
                 s,
                 "fn {p}_mpv(x: &[[{t}; {c}]; {n}]) -> {t} {{ let mut lab = [0u16; {n}]; {p}_mpe(x, &mut lab) }}"
             );
+            let _ = writeln!(
+                s,
+                "#[inline(never)] fn {p}_lw(e: &Evidence, p: [usize; {n}], labels: &mut Labels) {{ let mut lab = [0u16; {n}]; {p}_mpe(&{P}gather(e, &ALL_UNKNOWN, p), &mut lab); {P}scatter_labels(labels, &lab, p); }}"
+            );
             if !single_pass {
                 let _ = writeln!(
                     s,
@@ -402,10 +410,6 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
                 "#[inline(never)] fn {p}_sg(g: &[[{t}; NUM_CLASSES]; {rows}], off: usize, w: {t}, p: [usize; {n}], out: &mut Marginals) {{ if let Some(r) = {P}rows(g, off) {{ {P}scatter_post(out, w, r, p); }} }}"
             );
         }
-        let _ = writeln!(
-            s,
-            "#[inline(never)] fn {p}_lw(e: &Evidence, p: [usize; {n}], labels: &mut Labels) {{ let mut lab = [0u16; {n}]; {p}_mpe(&{P}gather(e, &ALL_UNKNOWN, p), &mut lab); {P}scatter_labels(labels, &lab, p); }}"
-        );
     }
     let name_of = |it: &Item| &tpl[uniques[it.members()[0]].template].0;
     let chunks = chunk_items(&items, options.chunk_size);
@@ -518,19 +522,52 @@ static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
     let mut mpe_dispatch = String::new();
     let mut mpe_count = 0usize;
     for (d, dec) in decs.iter().enumerate() {
-        let mut calls = Vec::new();
-        for (j, ch) in dec.components.chunks(options.chunk_size).enumerate() {
-            let mut body = String::new();
-            for comp in ch {
-                let (name, _) = &tpl[comp.template];
-                let _ = writeln!(body, "{name}_lw(e, {}, labels);", places(&comp.places));
+        // This decomposition's components, template by template; kernel templates in
+        // lane groups (padded with copies of the first member, which write the same
+        // labels again).
+        let mut units: Vec<(usize, String)> = Vec::new();
+        for (k, &g) in grouped.iter().enumerate() {
+            let mine: Vec<&[usize]> = dec
+                .components
+                .iter()
+                .filter(|comp| comp.template == k)
+                .map(|comp| comp.places.as_slice())
+                .collect();
+            let name = &tpl[k].0;
+            if g {
+                for group in mine.chunks(lanes) {
+                    let rows: Vec<String> = (0..lanes)
+                        .map(|lane| places(group.get(lane).unwrap_or(&group[0])))
+                        .collect();
+                    units.push((
+                        group.len(),
+                        format!("{name}_lwv(e, [{}], labels);", rows.join(", ")),
+                    ));
+                }
+            } else {
+                for pl in mine {
+                    units.push((1, format!("{name}_lw(e, {}, labels);", places(pl))));
+                }
             }
+        }
+        let mut calls = Vec::new();
+        let mut start = 0usize;
+        let mut j = 0usize;
+        while start < units.len() {
+            let (mut end, mut count) = (start, 0usize);
+            while end < units.len() && (count == 0 || count + units[end].0 <= options.chunk_size) {
+                count += units[end].0;
+                end += 1;
+            }
+            let body: String = units[start..end].iter().map(|u| u.1.as_str()).collect();
             mpe_count += 1;
             let _ = writeln!(
                 parts.text(mpe_count - 1),
                 "#[inline(never)] pub(super) fn mpe_d{d}_chunk{j}(e: &Evidence, labels: &mut Labels) {{ {body} }}"
             );
             calls.push(format!("mpe_d{d}_chunk{j}(e, labels);"));
+            start = end;
+            j += 1;
         }
         let _ = writeln!(mpe_dispatch, "{d} => {{ {} }}", calls.join(" "));
     }

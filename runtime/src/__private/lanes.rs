@@ -45,6 +45,10 @@ pub trait Lanes: Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign {
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// Lane-wise maximum (inputs are never NaN here).
     fn max(self, o: Self) -> Self;
+    /// Where `p > *best` (strictly): `*best = p` and `*arg = code`.
+    fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self);
+    /// Lane `l` (`0` when out of range).
+    fn lane(self, l: usize) -> Self::Scalar;
 }
 
 impl Lanes for Lanes32 {
@@ -62,6 +66,16 @@ impl Lanes for Lanes32 {
     fn max(self, o: Self) -> Self {
         self.fast_max(o)
     }
+    #[inline(always)]
+    fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
+        let gt = p.simd_gt(*best);
+        *best = gt.select(p, *best);
+        *arg = gt.select(code, *arg);
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> f32 {
+        self.to_array().get(l).copied().unwrap_or(0.0)
+    }
 }
 
 impl Lanes for Lanes64 {
@@ -78,6 +92,16 @@ impl Lanes for Lanes64 {
     #[inline(always)]
     fn max(self, o: Self) -> Self {
         self.fast_max(o)
+    }
+    #[inline(always)]
+    fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
+        let gt = p.simd_gt(*best);
+        *best = gt.select(p, *best);
+        *arg = gt.select(code, *arg);
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> f64 {
+        self.to_array().get(l).copied().unwrap_or(0.0)
     }
 }
 
@@ -332,6 +356,104 @@ pub fn v3_max<V: Lanes, const M: usize, const A: usize, const B: usize, const K:
             om = om.max(vv * *ai);
         }
         *o = om;
+    }
+}
+
+/// [`v1_max`] recording, where `out[m]` grew in a lane, the tuple code `code0 + i` in
+/// `arg[m]` (codes number a block's tuples: segment offset plus the row-major tuple
+/// index; see [`decode_arg`]).
+#[inline(never)]
+pub fn v1_maxa<V: Lanes, const M: usize, const A: usize>(
+    code0: V::Scalar,
+    w: &[[V::Scalar; A]; M],
+    a: &[V; A],
+    out: &mut [V; M],
+    arg: &mut [V; M],
+) {
+    for ((o, am), wm) in out.iter_mut().zip(arg.iter_mut()).zip(w) {
+        let mut code = code0;
+        for (&x, ai) in wm.iter().zip(a) {
+            V::arg_max(o, am, V::splat(x) * *ai, V::splat(code));
+            code += V::Scalar::ONE;
+        }
+    }
+}
+
+/// [`v2_max`] recording tuple codes `code0 + i·B + j` (see [`v1_maxa`]).
+#[inline(never)]
+pub fn v2_maxa<V: Lanes, const M: usize, const A: usize, const B: usize>(
+    code0: V::Scalar,
+    w: &[[[V::Scalar; B]; A]; M],
+    (a, b): (&[V; A], &[V; B]),
+    out: &mut [V; M],
+    arg: &mut [V; M],
+) {
+    for ((o, am), wm) in out.iter_mut().zip(arg.iter_mut()).zip(w) {
+        let mut code = code0;
+        for (wi, ai) in wm.iter().zip(a) {
+            for (&x, bj) in wi.iter().zip(b) {
+                V::arg_max(o, am, V::splat(x) * *bj * *ai, V::splat(code));
+                code += V::Scalar::ONE;
+            }
+        }
+    }
+}
+
+/// [`v3_max`] recording tuple codes `code0 + (i·B + j)·K + k` (see [`v1_maxa`]).
+#[inline(never)]
+pub fn v3_maxa<V: Lanes, const M: usize, const A: usize, const B: usize, const K: usize>(
+    code0: V::Scalar,
+    w: &[[[[V::Scalar; K]; B]; A]; M],
+    (a, b, c): (&[V; A], &[V; B], &[V; K]),
+    out: &mut [V; M],
+    arg: &mut [V; M],
+) {
+    for ((o, am), wm) in out.iter_mut().zip(arg.iter_mut()).zip(w) {
+        let mut code = code0;
+        for (wi, ai) in wm.iter().zip(a) {
+            for (wj, bj) in wi.iter().zip(b) {
+                let s = *ai * *bj;
+                for (&x, ck) in wj.iter().zip(c) {
+                    V::arg_max(o, am, V::splat(x) * *ck * s, V::splat(code));
+                    code += V::Scalar::ONE;
+                }
+            }
+        }
+    }
+}
+
+/// The tuples recorded in lane `l` of a block's `arg` codes as `[segment, i, j, k]`,
+/// for the block's segments given as `[offset, A, B, K]` (code offset and input
+/// lengths, `1` for missing inputs), in order.
+#[inline(always)]
+pub fn decode_arg<V: Lanes, const M: usize, const S: usize>(
+    arg: &[V; M],
+    l: usize,
+    segments: [[usize; 4]; S],
+) -> [[u16; 4]; M] {
+    let mut out = [[0u16; 4]; M];
+    for (o, a) in out.iter_mut().zip(arg) {
+        let code = a.lane(l).index();
+        for (s, &[off, _, b, k]) in segments.iter().enumerate() {
+            if code >= off {
+                let t = code - off;
+                let (i, j, kk) = (t / (b * k).max(1), (t / k.max(1)) % b.max(1), t % k.max(1));
+                *o = [s as u16, i as u16, j as u16, kk as u16];
+            }
+        }
+    }
+    out
+}
+
+/// `labels[p[l][i]] = lab[l][i]` for every lane `l` and component place `i`.
+#[inline(always)]
+pub fn scatter_labels_lanes<const N: usize, const K: usize, const L: usize>(
+    labels: &mut [u16; N],
+    lab: &[[u16; K]; L],
+    p: [[usize; K]; L],
+) {
+    for (ll, pl) in lab.iter().zip(&p) {
+        super::scatter_labels(labels, ll, *pl);
     }
 }
 

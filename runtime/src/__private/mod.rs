@@ -312,16 +312,26 @@ pub trait Real:
     const ZERO: Self;
     /// `1`.
     const ONE: Self;
+    /// The value as an index (truncated; `0` for negative or NaN values).
+    fn index(self) -> usize;
 }
 
 impl Real for f32 {
     const ZERO: f32 = 0.0;
     const ONE: f32 = 1.0;
+    #[inline(always)]
+    fn index(self) -> usize {
+        self as usize
+    }
 }
 
 impl Real for f64 {
     const ZERO: f64 = 0.0;
     const ONE: f64 = 1.0;
+    #[inline(always)]
+    fn index(self) -> usize {
+        self as usize
+    }
 }
 
 /// The scaled rows of places `p` (see `prep_f32`): `x = α/max α`, or the one-hot row of
