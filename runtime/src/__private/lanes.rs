@@ -51,59 +51,39 @@ pub trait Lanes: Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign {
     fn lane(self, l: usize) -> Self::Scalar;
 }
 
-impl Lanes for Lanes32 {
-    type Scalar = f32;
-    const ZERO: Self = wide::f32x8::ZERO;
-    #[inline(always)]
-    fn splat(s: f32) -> Self {
-        wide::f32x8::splat(s)
-    }
-    #[inline(always)]
-    fn mul_add(self, a: Self, b: Self) -> Self {
-        wide::f32x8::mul_add(self, a, b)
-    }
-    #[inline(always)]
-    fn max(self, o: Self) -> Self {
-        self.fast_max(o)
-    }
-    #[inline(always)]
-    fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
-        let gt = p.simd_gt(*best);
-        *best = gt.select(p, *best);
-        *arg = gt.select(code, *arg);
-    }
-    #[inline(always)]
-    fn lane(self, l: usize) -> f32 {
-        self.to_array().get(l).copied().unwrap_or(0.0)
-    }
+macro_rules! lanes_impl {
+    ($v:ident, $t:ident) => {
+        impl Lanes for $v {
+            type Scalar = $t;
+            const ZERO: Self = $v::ZERO;
+            #[inline(always)]
+            fn splat(s: $t) -> Self {
+                $v::splat(s)
+            }
+            #[inline(always)]
+            fn mul_add(self, a: Self, b: Self) -> Self {
+                $v::mul_add(self, a, b)
+            }
+            #[inline(always)]
+            fn max(self, o: Self) -> Self {
+                self.fast_max(o)
+            }
+            #[inline(always)]
+            fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
+                let gt = p.simd_gt(*best);
+                *best = gt.select(p, *best);
+                *arg = gt.select(code, *arg);
+            }
+            #[inline(always)]
+            fn lane(self, l: usize) -> $t {
+                self.to_array().get(l).copied().unwrap_or(0.0)
+            }
+        }
+    };
 }
 
-impl Lanes for Lanes64 {
-    type Scalar = f64;
-    const ZERO: Self = wide::f64x4::ZERO;
-    #[inline(always)]
-    fn splat(s: f64) -> Self {
-        wide::f64x4::splat(s)
-    }
-    #[inline(always)]
-    fn mul_add(self, a: Self, b: Self) -> Self {
-        wide::f64x4::mul_add(self, a, b)
-    }
-    #[inline(always)]
-    fn max(self, o: Self) -> Self {
-        self.fast_max(o)
-    }
-    #[inline(always)]
-    fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
-        let gt = p.simd_gt(*best);
-        *best = gt.select(p, *best);
-        *arg = gt.select(code, *arg);
-    }
-    #[inline(always)]
-    fn lane(self, l: usize) -> f64 {
-        self.to_array().get(l).copied().unwrap_or(0.0)
-    }
-}
+lanes_impl!(Lanes32, f32);
+lanes_impl!(Lanes64, f64);
 
 /// `out[m] += Σ_i w[m][i]·a[i]`.
 #[inline(never)]
