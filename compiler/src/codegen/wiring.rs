@@ -31,8 +31,9 @@
 //!   sweep and adding its weighted local posteriors into `out` directly. Recomputing
 //!   the forward sweep costs about a third more arithmetic than storing per-component
 //!   posteriors, which would need `D·N·C` scalars (2 MB at 10k places).
-//! - MPE: a max-product value pass (lane groups), then only the best decomposition's
-//!   components are re-run one by one with backtracking to write the labels.
+//! - MPE: a max-product value pass over every distinct component, then only the best
+//!   decomposition's components are re-run (in lane groups of their own) with arg-max
+//!   tracking and per-lane backtracking to write the labels.
 
 use std::fmt::Write;
 
