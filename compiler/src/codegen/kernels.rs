@@ -19,8 +19,9 @@
 //! Blocks are then computed by the const-generic kernels of
 //! `graphspn_runtime::__private` with the weights in `static` arrays (row-major,
 //! `w[m][i][j][k]`): the lane kernels `v1_*`, `v2_*`, `v3_*` evaluate a group of
-//! components at once, one per SIMD lane (values, adjoints, max-product values), and
-//! the one-component `d*_maxa` / `d*_back` kernels backtrack MPE labellings. Generated
+//! components at once, one per SIMD lane (values, adjoints, max-product values and
+//! their arguments), and `decode_arg` / `d*_back` backtrack each lane's MPE labelling
+//! from the recorded arguments. Generated
 //! template functions are a few calls, whatever the number of SPN edges. Templates
 //! that do not match keep the per-node code of `template.rs`.
 //!
