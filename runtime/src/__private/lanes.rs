@@ -359,7 +359,10 @@ pub fn v1_maxa<V: Lanes, const M: usize, const A: usize>(
     }
 }
 
-/// [`v2_max`] recording tuple codes `code0 + i·B + j` (see [`v1_maxa`]).
+/// [`v2_max`] recording tuple codes `code0 + i·B + j` (see [`v1_maxa`]). The maximum
+/// over `j` is taken per `i` first (the same products as [`v2_max`], and short
+/// dependency chains), then over `i`; both with a strict `>` in increasing order, so
+/// the lowest `(i, j)` among equal products wins.
 #[inline(never)]
 pub fn v2_maxa<V: Lanes, const M: usize, const A: usize, const B: usize>(
     code0: V::Scalar,
@@ -368,18 +371,25 @@ pub fn v2_maxa<V: Lanes, const M: usize, const A: usize, const B: usize>(
     out: &mut [V; M],
     arg: &mut [V; M],
 ) {
+    let step = lane_codes::<V>(B);
+    let zero = V::ZERO; // products are ≥ 0: a 0 start with the first code is the first tuple
     for ((o, am), wm) in out.iter_mut().zip(arg.iter_mut()).zip(w) {
-        let mut code = code0;
+        let mut row = V::splat(code0);
         for (wi, ai) in wm.iter().zip(a) {
+            let (mut best, mut code) = (zero, row);
+            let mut c = row;
             for (&x, bj) in wi.iter().zip(b) {
-                V::arg_max(o, am, V::splat(x) * *bj * *ai, V::splat(code));
-                code += V::Scalar::ONE;
+                V::arg_max(&mut best, &mut code, V::splat(x) * *bj, c);
+                c += V::splat(V::Scalar::ONE);
             }
+            V::arg_max(o, am, best * *ai, code);
+            row += step;
         }
     }
 }
 
-/// [`v3_max`] recording tuple codes `code0 + (i·B + j)·K + k` (see [`v1_maxa`]).
+/// [`v3_max`] recording tuple codes `code0 + (i·B + j)·K + k` (see [`v2_maxa`]: maxima
+/// over `k`, then `j`, then `i`, with the products of [`v3_max`]).
 #[inline(never)]
 pub fn v3_maxa<V: Lanes, const M: usize, const A: usize, const B: usize, const K: usize>(
     code0: V::Scalar,
@@ -388,18 +398,34 @@ pub fn v3_maxa<V: Lanes, const M: usize, const A: usize, const B: usize, const K
     out: &mut [V; M],
     arg: &mut [V; M],
 ) {
+    let step_j = lane_codes::<V>(K);
+    let step_i = lane_codes::<V>(B * K);
+    let zero = V::ZERO; // products are ≥ 0: a 0 start with the first code is the first tuple
     for ((o, am), wm) in out.iter_mut().zip(arg.iter_mut()).zip(w) {
-        let mut code = code0;
+        let mut row_i = V::splat(code0);
         for (wi, ai) in wm.iter().zip(a) {
+            let (mut best_i, mut code_i) = (zero, row_i);
+            let mut row_j = row_i;
             for (wj, bj) in wi.iter().zip(b) {
-                let s = *ai * *bj;
+                let (mut best_j, mut code_j) = (zero, row_j);
+                let mut ck_code = row_j;
                 for (&x, ck) in wj.iter().zip(c) {
-                    V::arg_max(o, am, V::splat(x) * *ck * s, V::splat(code));
-                    code += V::Scalar::ONE;
+                    V::arg_max(&mut best_j, &mut code_j, V::splat(x) * *ck, ck_code);
+                    ck_code += V::splat(V::Scalar::ONE);
                 }
+                V::arg_max(&mut best_i, &mut code_i, best_j * *bj, code_j);
+                row_j += step_j;
             }
+            V::arg_max(o, am, best_i * *ai, code_i);
+            row_i += step_i;
         }
     }
+}
+
+/// `n` as a lane vector (a code increment).
+#[inline(always)]
+fn lane_codes<V: Lanes>(n: usize) -> V {
+    V::splat(V::Scalar::from_index(n))
 }
 
 /// The tuples recorded in lane `l` of a block's `arg` codes as `[segment, i, j, k]`,

@@ -314,6 +314,8 @@ pub trait Real:
     const ONE: Self;
     /// The value as an index (truncated; `0` for negative or NaN values).
     fn index(self) -> usize;
+    /// An index as a value (exact below 2^24 for `f32`).
+    fn from_index(i: usize) -> Self;
 }
 
 impl Real for f32 {
@@ -323,6 +325,10 @@ impl Real for f32 {
     fn index(self) -> usize {
         self as usize
     }
+    #[inline(always)]
+    fn from_index(i: usize) -> f32 {
+        i as f32
+    }
 }
 
 impl Real for f64 {
@@ -331,6 +337,10 @@ impl Real for f64 {
     #[inline(always)]
     fn index(self) -> usize {
         self as usize
+    }
+    #[inline(always)]
+    fn from_index(i: usize) -> f64 {
+        i as f64
     }
 }
 
