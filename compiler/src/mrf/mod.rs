@@ -14,7 +14,10 @@ pub mod model;
 
 pub use bp::{BpOptions, BpResult, Schedule, loopy_bp};
 pub use factor_graph::{ExactResult, Factor, FactorGraph, exact_inference};
-pub use model::{CooccurrenceParams, LabelledLikelihood, Mrf2, Mrf3, MrfModel, Normalisation};
+pub use model::{
+    Cliques, CooccurrenceMrf, CooccurrenceParams, LabelledLikelihood, Mrf2, Mrf3, MrfModel,
+    Normalisation,
+};
 
 use thiserror::Error;
 

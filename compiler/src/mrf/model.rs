@@ -305,113 +305,96 @@ fn potentials_from_counts(
     }
 }
 
-/// MRF with a pairwise co-occurrence potential on every edge (the paper's MRF-2).
+/// MRF with a co-occurrence potential on every clique of `K` places (see the module
+/// docs): [`Mrf2`] (edges) and [`Mrf3`] (connected triples `A–P–B`).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Mrf2 {
+pub struct CooccurrenceMrf<const K: usize> {
     num_classes: usize,
     counts: Vec<f64>,
     potential: Arc<[f64]>,
 }
 
-impl Mrf2 {
-    /// Counts class pairs over the edges of the training maps (both orientations).
-    pub fn train(maps: &[TopoMap], params: &CooccurrenceParams) -> Result<Self, MrfError> {
-        check_params(params)?;
-        let c = num_classes_of(maps)?;
-        let mut counts = vec![0.0; c * c];
-        for m in maps {
-            let cls = classes_of(m, c)?;
-            for [a, b] in edges_sorted(m) {
-                if let (Some(x), Some(y)) = (cls[a], cls[b]) {
-                    counts[x * c + y] += 1.0;
-                    counts[y * c + x] += 1.0;
-                }
-            }
-        }
-        let potential = potentials_from_counts(&counts, c, 2, params).into();
-        Ok(Mrf2 {
-            num_classes: c,
-            counts,
-            potential,
-        })
-    }
-
-    /// Raw pair counts, `counts[a * C + b]` (symmetric; every edge counted in both orientations).
-    pub fn counts(&self) -> &[f64] {
-        &self.counts
-    }
-
-    /// The pairwise potential `ψ(a, b)` at `[a * C + b]`.
-    pub fn potential(&self) -> &[f64] {
-        &self.potential
-    }
-}
-
-impl MrfModel for Mrf2 {
-    fn num_classes(&self) -> usize {
-        self.num_classes
-    }
-
-    fn add_dependency_factors(&self, map: &TopoMap, fg: &mut FactorGraph) -> Result<(), MrfError> {
-        for [a, b] in edges_sorted(map) {
-            fg.add_factor_shared(vec![a, b], self.potential.clone())?;
-        }
-        Ok(())
-    }
-}
+/// MRF with a pairwise co-occurrence potential on every edge (the paper's MRF-2).
+pub type Mrf2 = CooccurrenceMrf<2>;
 
 /// MRF with a three-variable co-occurrence potential on every connected triple
 /// `A–P–B` (the paper's MRF-3); see the module docs.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Mrf3 {
-    num_classes: usize,
-    counts: Vec<f64>,
-    potential: Arc<[f64]>,
+pub type Mrf3 = CooccurrenceMrf<3>;
+
+/// The cliques a co-occurrence MRF puts its factors on, in factor variable order.
+pub trait Cliques<const K: usize> {
+    /// Every clique of `map`.
+    fn cliques(map: &TopoMap) -> Vec<[usize; K]>;
 }
 
-impl Mrf3 {
-    /// Counts class triples `(A, P, B)` over every path `A–P–B` of the training
-    /// maps, in both orientations `(A, P, B)` and `(B, P, A)`.
+impl Cliques<2> for Mrf2 {
+    fn cliques(map: &TopoMap) -> Vec<[usize; 2]> {
+        edges_sorted(map)
+    }
+}
+
+impl Cliques<3> for Mrf3 {
+    fn cliques(map: &TopoMap) -> Vec<[usize; 3]> {
+        connected_triples(map)
+    }
+}
+
+impl<const K: usize> CooccurrenceMrf<K>
+where
+    Self: Cliques<K>,
+{
+    /// Counts class tuples over the cliques of the training maps (edges for MRF-2,
+    /// paths `A–P–B` for MRF-3), each in both orientations (the tuple and its
+    /// reverse), then turns the counts into the potential.
     pub fn train(maps: &[TopoMap], params: &CooccurrenceParams) -> Result<Self, MrfError> {
         check_params(params)?;
         let c = num_classes_of(maps)?;
-        let mut counts = vec![0.0; c * c * c];
+        let mut counts = vec![0.0; c.pow(K as u32)];
         for m in maps {
             let cls = classes_of(m, c)?;
-            for [a, p, b] in connected_triples(m) {
-                if let (Some(x), Some(y), Some(z)) = (cls[a], cls[p], cls[b]) {
-                    counts[(x * c + y) * c + z] += 1.0;
-                    counts[(z * c + y) * c + x] += 1.0;
+            'clique: for clique in Self::cliques(m) {
+                let mut t = [0usize; K];
+                for (x, &p) in t.iter_mut().zip(&clique) {
+                    match cls[p] {
+                        Some(class) => *x = class,
+                        None => continue 'clique,
+                    }
                 }
+                counts[t.iter().fold(0, |i, &x| i * c + x)] += 1.0;
+                counts[t.iter().rev().fold(0, |i, &x| i * c + x)] += 1.0;
             }
         }
-        let potential = potentials_from_counts(&counts, c, 3, params).into();
-        Ok(Mrf3 {
+        let potential = potentials_from_counts(&counts, c, K as u32, params).into();
+        Ok(CooccurrenceMrf {
             num_classes: c,
             counts,
             potential,
         })
     }
 
-    /// Raw triple counts at `[(a * C + p) * C + b]` (ends `a`, `b`, pivot `p`).
+    /// Raw tuple counts at `[(a · C + b) · C + …]` in factor variable order (MRF-3:
+    /// ends `a`, `b`, pivot `p` at `[(a · C + p) · C + b]`); symmetric under reversal.
     pub fn counts(&self) -> &[f64] {
         &self.counts
     }
 
-    /// The potential `ψ(a, p, b)` at `[(a * C + p) * C + b]`.
+    /// The potential at the same index as [`CooccurrenceMrf::counts`].
     pub fn potential(&self) -> &[f64] {
         &self.potential
     }
 }
 
-impl MrfModel for Mrf3 {
+impl<const K: usize> MrfModel for CooccurrenceMrf<K>
+where
+    Self: Cliques<K>,
+{
     fn num_classes(&self) -> usize {
         self.num_classes
     }
 
     fn add_dependency_factors(&self, map: &TopoMap, fg: &mut FactorGraph) -> Result<(), MrfError> {
-        for [a, p, b] in connected_triples(map) {
-            fg.add_factor_shared(vec![a, p, b], self.potential.clone())?;
+        for clique in Self::cliques(map) {
+            fg.add_factor_shared(clique.to_vec(), self.potential.clone())?;
         }
         Ok(())
     }
