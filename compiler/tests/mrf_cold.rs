@@ -28,11 +28,11 @@ fn accuracy(marg: &[Vec<f64>], map: &TopoMap, only: impl Fn(usize) -> bool) -> f
     ok as f64 / n.max(1) as f64
 }
 
-#[test]
-fn mrf_baselines_on_cold() {
+/// `$GRAPHSPN_DATA` (the COLD maps folder), or `None` (test skipped) when unset.
+fn data_root() -> Option<PathBuf> {
     let Ok(root) = std::env::var("GRAPHSPN_DATA") else {
         eprintln!("GRAPHSPN_DATA unset: skipping");
-        return;
+        return None;
     };
     let root = PathBuf::from(root);
     assert!(
@@ -40,6 +40,26 @@ fn mrf_baselines_on_cold() {
         "GRAPHSPN_DATA={} is not a folder",
         root.display()
     );
+    Some(root)
+}
+
+/// MRF-2 and MRF-3 trained on `train` with the given normalisation.
+fn models(train: &[TopoMap], norm: Normalisation) -> (Mrf2, Mrf3) {
+    let params = CooccurrenceParams {
+        normalisation: norm,
+        ..CooccurrenceParams::default()
+    };
+    (
+        Mrf2::train(train, &params).unwrap(),
+        Mrf3::train(train, &params).unwrap(),
+    )
+}
+
+#[test]
+fn mrf_baselines_on_cold() {
+    let Some(root) = data_root() else {
+        return;
+    };
     let fr = building(&root, "Freiburg");
     let sa = building(&root, "Saarbrucken");
     let st = building(&root, "Stockholm");
@@ -55,12 +75,7 @@ fn mrf_baselines_on_cold() {
     train.extend(st);
     let opts = BpOptions::default();
     for norm in [Normalisation::Joint, Normalisation::Pmi] {
-        let params = CooccurrenceParams {
-            normalisation: norm,
-            ..CooccurrenceParams::default()
-        };
-        let m2 = Mrf2::train(&train, &params).unwrap();
-        let m3 = Mrf3::train(&train, &params).unwrap();
+        let (m2, m3) = models(&train, norm);
         for (name, model, levels, maps) in
             [("MRF-2", &m2 as &dyn MrfModel, 6, 3), ("MRF-3", &m3, 2, 1)]
         {
@@ -93,27 +108,15 @@ fn mrf_baselines_on_cold() {
 /// true labelling must beat the same map with corridor ↔ doorway swapped.
 #[test]
 fn mrf_likelihood_prefers_true_labels_on_cold() {
-    let Ok(root) = std::env::var("GRAPHSPN_DATA") else {
-        eprintln!("GRAPHSPN_DATA unset: skipping");
+    let Some(root) = data_root() else {
         return;
     };
-    let root = PathBuf::from(root);
-    assert!(
-        root.is_dir(),
-        "GRAPHSPN_DATA={} is not a folder",
-        root.display()
-    );
     let mut train = building(&root, "Saarbrucken");
     train.extend(building(&root, "Stockholm"));
     let test = building(&root, "Freiburg");
     let opts = BpOptions::default();
     for norm in [Normalisation::Joint, Normalisation::Pmi] {
-        let params = CooccurrenceParams {
-            normalisation: norm,
-            ..CooccurrenceParams::default()
-        };
-        let m2 = Mrf2::train(&train, &params).unwrap();
-        let m3 = Mrf3::train(&train, &params).unwrap();
+        let (m2, m3) = models(&train, norm);
         for (name, model) in [("MRF-2", &m2 as &dyn MrfModel), ("MRF-3", &m3)] {
             let mut wins = 0;
             let mut conv = 0;
