@@ -78,3 +78,37 @@ fn run_writes_only_when_changed() {
     let bad = b.module_name("not an ident").run().unwrap_err();
     assert!(matches!(bad, BuildError::BadOption(_)), "{bad}");
 }
+
+#[test]
+fn run_never_replaces_a_file_it_did_not_write_unless_allowed() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("floor.rs");
+    std::fs::write(&out, "// hand-written\n").unwrap();
+    let b = Builder::new(demo().join("model.json"), demo().join("floor.json"))
+        .count(2)
+        .module_name("floor")
+        .out_dir(dir.path())
+        .cargo_metadata(false);
+    let err = b.clone().run().unwrap_err();
+    assert!(matches!(err, BuildError::NotGenerated { .. }), "{err}");
+    assert!(err.to_string().contains("floor.rs"), "{err}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "// hand-written\n");
+    b.overwrite(true).run().unwrap();
+    assert!(graphspn::codegen::is_generated_file(
+        &std::fs::read_to_string(&out).unwrap()
+    ));
+}
+
+#[test]
+fn empty_map_is_reported_with_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = Model::load(demo().join("model.json")).unwrap();
+    let map = TopoMap::new("empty", model.classes.clone(), vec![], vec![]).unwrap();
+    let path = dir.path().join("empty.json");
+    map.save(&path).unwrap();
+    let err = Builder::new(demo().join("model.json"), &path)
+        .generate()
+        .unwrap_err();
+    assert!(matches!(err, BuildError::EmptyMap { .. }), "{err}");
+    assert!(err.to_string().contains("empty.json"), "{err}");
+}

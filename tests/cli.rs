@@ -126,4 +126,20 @@ fn instance_exports_dot_and_compile_writes_generated_source() {
         .unwrap();
     assert!(!status.success());
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "// mine\n");
+    // Nor is an existing --export-map file with other content.
+    let exported = dir.path().join("map.json");
+    std::fs::write(&exported, "{}").unwrap();
+    let status = bin()
+        .args(["compile", "--module", "floor", "--model"])
+        .arg(demo("model.json"))
+        .arg("--map")
+        .arg(demo("floor.json"))
+        .arg("--out")
+        .arg(dir.path().join("other.rs"))
+        .arg("--export-map")
+        .arg(&exported)
+        .status()
+        .unwrap();
+    assert!(!status.success());
+    assert_eq!(std::fs::read_to_string(&exported).unwrap(), "{}");
 }

@@ -26,8 +26,8 @@ mod template;
 mod wiring;
 
 pub use builder::{
-    BuildError, Builder, GENERATED_MARKER, Inputs, compile, is_generated_file, load_decompositions,
-    load_map, load_model, write_if_changed,
+    BuildError, Builder, GENERATED_MARKER, Inputs, check_module_name, compile, is_generated_file,
+    load_decompositions, load_map, load_model, write_if_changed,
 };
 
 use thiserror::Error;
