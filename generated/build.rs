@@ -12,35 +12,22 @@ use graphspn_compiler::codegen::{Builder, load_map, write_if_changed};
 const COUNT: usize = 5;
 const SEED: u64 = 0;
 
-/// `(module name, map file under demo/, built by default)`.
-///
-/// The 230-place COLD map is compiled when `BUILD_LARGE` is true (the default) or the
-/// `GRAPHSPN_BUILD_LARGE` environment variable is set.
-const BUILD_LARGE: bool = true;
-const MAPS: &[(&str, &str, bool)] = &[
-    ("demo_floor", "demo/floor.json", false),
+/// `(module name, map file under demo/)`: the synthetic demo floor, and the largest
+/// COLD map (230 places) that the benchmarks and `graphspn reproduce` use.
+const MAPS: &[(&str, &str)] = &[
+    ("demo_floor", "demo/floor.json"),
     (
         "saarbrucken_seq2_night1",
         "demo/saarbrucken_seq2_night1.json",
-        true,
     ),
 ];
 
 fn main() {
     let dir = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("set by cargo"));
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("set by cargo"));
-    println!("cargo::rustc-check-cfg=cfg(graphspn_large)");
     println!("cargo:rerun-if-changed=build.rs");
-    println!("cargo:rerun-if-env-changed=GRAPHSPN_BUILD_LARGE");
-    let large = BUILD_LARGE || std::env::var_os("GRAPHSPN_BUILD_LARGE").is_some();
-    if large {
-        println!("cargo:rustc-cfg=graphspn_large");
-    }
     let model = dir.join("demo/model.json");
-    for &(module, file, is_large) in MAPS {
-        if is_large && !large {
-            continue;
-        }
+    for &(module, file) in MAPS {
         let map = dir.join(file);
         if let Err(e) = Builder::new(&model, &map)
             .seed(SEED)

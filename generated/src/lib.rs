@@ -5,7 +5,8 @@
 //! - [`demo_floor`]: a synthetic 80-place office floor (`graphspn generate`), with the
 //!   model trained on all COLD buildings (`graphspn train`); [`demo_floor_truth`]
 //!   holds its annotated classes.
-//! - `saarbrucken_seq2_night1` (cfg `graphspn_large`): the largest COLD map, 230 places.
+//! - [`saarbrucken_seq2_night1`]: the largest COLD map, 230 places (the benchmarks
+//!   and `graphspn reproduce` use it).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -22,14 +23,12 @@ pub mod demo_floor_truth {
 }
 
 /// Saarbrücken `seq2_night1`, the largest COLD map (230 places, `f32`).
-#[cfg(graphspn_large)]
 #[allow(missing_docs, clippy::all)]
 pub mod saarbrucken_seq2_night1 {
     include!(concat!(env!("OUT_DIR"), "/saarbrucken_seq2_night1.rs"));
 }
 
 /// Ground truth of [`saarbrucken_seq2_night1`].
-#[cfg(graphspn_large)]
 pub mod saarbrucken_seq2_night1_truth {
     include!(concat!(
         env!("OUT_DIR"),
