@@ -10,5 +10,5 @@
 mod eval;
 mod evidence;
 
-pub use eval::{Evaluator, InferenceError, Marginals, Mpe, log_likelihood, marginals, mpe};
+pub use eval::{BATCH, Evaluator, InferenceError, Marginals, Mpe, log_likelihood, marginals, mpe};
 pub use evidence::Evidence;
