@@ -11,8 +11,10 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{Case, case_evidence, check_case, differential};
-use graphspn::codegen::{Builder, DEFAULT_STACK_BYTES, Precision};
+use common::{
+    Case, Variant, case_evidence, check_case, differential, env_usize, probe_labels, stride,
+};
+use graphspn::codegen::Builder;
 use graphspn::decompose::{DecompositionParams, decompose_best};
 use graphspn::learn::Model;
 use graphspn::map::cold;
@@ -37,16 +39,6 @@ const COLD_MAPS: &[&str] = &[
     "Stockholm/floor4_night_a1",
     "Saarbrucken/seq3_sunny1",
 ];
-
-fn env_usize(name: &str, default: usize) -> usize {
-    std::env::var(name)
-        .ok()
-        .map(|v| {
-            v.parse()
-                .unwrap_or_else(|_| panic!("{name}={v} is not a number"))
-        })
-        .unwrap_or(default)
-}
 
 fn demo_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
@@ -73,32 +65,37 @@ fn demo_floor_matches_interpreter() {
         model: inputs.model,
         map: inputs.map,
         decs: inputs.decompositions,
-        precision: Precision::F32,
+        variants: vec![Variant::F32],
         vectors: env_usize("GRAPHSPN_DIFF_VECTORS", VECTORS),
         seed: 1,
-        max_stack_bytes: DEFAULT_STACK_BYTES,
     };
     let evs = case_evidence(&case);
     let (n, c) = (demo_floor::NUM_PLACES, demo_floor::NUM_CLASSES);
-    let mut vals = Vec::with_capacity(evs.len() * (2 + n + n * c));
+    let mut vals = Vec::with_capacity(evs.len() * stride(n, c));
     let mut e: demo_floor::Evidence = [[0.0; demo_floor::NUM_CLASSES]; demo_floor::NUM_PLACES];
     let mut marg = e;
     let mut lab = [0u16; demo_floor::NUM_PLACES];
-    for ev in &evs {
+    let mut probe = [demo_floor::UNKNOWN; demo_floor::NUM_PLACES];
+    for (v, ev) in evs.iter().enumerate() {
         for (row, src) in e.iter_mut().zip(ev) {
             for (x, &s) in row.iter_mut().zip(src) {
                 *x = s as f32;
             }
         }
+        for (l, p) in probe.iter_mut().zip(probe_labels(ev, v)) {
+            *l = p.map_or(demo_floor::UNKNOWN, |k| k as u16);
+        }
         let ll = demo_floor::log_likelihood(&e).map_or(f64::NAN, f64::from);
         let mv = demo_floor::mpe(&e, &mut lab).map_or(f64::NAN, f64::from);
+        let pl = demo_floor::labelled_log_likelihood(&probe, &e).map_or(f64::NAN, f64::from);
         let _ = demo_floor::marginals(&e, &mut marg);
         vals.push(ll);
         vals.push(mv);
+        vals.push(pl);
         vals.extend(lab.iter().map(|&l| f64::from(l)));
         vals.extend(marg.iter().flatten().map(|&x| f64::from(x)));
     }
-    check_case(&case, &evs, &vals);
+    check_case(&case, &evs, &[vals]);
     eprintln!(
         "demo_floor: {} vectors (seed {}) agree with the interpreter",
         evs.len(),
@@ -155,28 +152,31 @@ fn cold_maps_match_interpreter() {
         )
         .unwrap();
         // The first compiled map is also checked in f64 and with two-pass marginals
-        // (the form maps get when their posteriors exceed the stack budget).
-        let variants: &[(Precision, usize, &str)] = if cases.is_empty() {
-            &[
-                (Precision::F32, DEFAULT_STACK_BYTES, ""),
-                (Precision::F64, DEFAULT_STACK_BYTES, ""),
-                (Precision::F32, 0, "_two_pass"),
+        // (the form maps get when their posteriors exceed the stack budget), against
+        // the same interpreter results.
+        let variants = if cases.is_empty() {
+            let two_pass = |v: Variant| Variant {
+                max_stack_bytes: 0,
+                ..v
+            };
+            vec![
+                Variant::F32,
+                Variant::F64,
+                two_pass(Variant::F32),
+                two_pass(Variant::F64),
             ]
         } else {
-            &[(Precision::F32, DEFAULT_STACK_BYTES, "")]
+            vec![Variant::F32]
         };
-        for &(precision, max_stack_bytes, suffix) in variants {
-            cases.push(Case {
-                name: format!("{}_{precision:?}{suffix}", module_name(path)).to_lowercase(),
-                model: model.clone(),
-                map: map.clone(),
-                decs: decs.clone(),
-                precision,
-                vectors,
-                seed,
-                max_stack_bytes,
-            });
-        }
+        cases.push(Case {
+            name: module_name(path).to_lowercase(),
+            model: model.clone(),
+            map,
+            decs,
+            variants,
+            vectors,
+            seed,
+        });
     }
     assert!(!cases.is_empty(), "no COLD map under the size cap {cap}");
     differential("cold_diff", &cases);

@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{Case, differential};
+use common::{Case, Variant, differential, env_usize};
 use graphspn::codegen::{CodegenOptions, DEFAULT_STACK_BYTES, Precision, generate};
 use graphspn::decompose::synthetic::random_connected_map;
 use graphspn::decompose::{DecompositionParams, decompose_best};
@@ -26,16 +26,6 @@ const STRUCTURES: usize = 24;
 const VECTORS: usize = 300;
 /// Modules per temporary crate.
 const BATCH: usize = 200;
-
-fn env_usize(name: &str, default: usize) -> usize {
-    std::env::var(name)
-        .ok()
-        .map(|v| {
-            v.parse()
-                .unwrap_or_else(|_| panic!("{name}={v} is not a number"))
-        })
-        .unwrap_or(default)
-}
 
 /// A random connected template of `k` nodes: a random tree plus maybe one extra edge.
 fn random_template(rng: &mut ChaCha8Rng, name: String, k: usize) -> Template {
@@ -138,19 +128,22 @@ fn random_case(seed: u64, vectors: usize) -> Case {
         model,
         map,
         decs,
-        precision: if seed.is_multiple_of(3) {
-            Precision::F64
-        } else {
-            Precision::F32
-        },
+        // Every third structure is compiled to f64, every fourth takes the two-pass
+        // marginals.
+        variants: vec![Variant {
+            precision: if seed.is_multiple_of(3) {
+                Precision::F64
+            } else {
+                Precision::F32
+            },
+            max_stack_bytes: if seed % 4 == 1 {
+                0
+            } else {
+                DEFAULT_STACK_BYTES
+            },
+        }],
         vectors,
         seed,
-        // Every fourth structure takes the two-pass marginals.
-        max_stack_bytes: if seed % 4 == 1 {
-            0
-        } else {
-            DEFAULT_STACK_BYTES
-        },
     }
 }
 
@@ -166,7 +159,7 @@ fn random_structures_match_interpreter() {
         let (mut lanes, mut per_node) = (0, 0);
         for c in &cases {
             let opts = CodegenOptions {
-                precision: c.precision,
+                precision: c.variants[0].precision,
                 ..Default::default()
             };
             let src = generate(&c.model, &c.map, &c.decs, &opts).expect("generate");

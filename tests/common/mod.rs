@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use graphspn::codegen::{CodegenOptions, Precision, generate};
+use graphspn::codegen::{CodegenOptions, DEFAULT_STACK_BYTES, Precision, generate};
 use graphspn::decompose::Decomposition;
 use graphspn::instance::Instance;
-use graphspn::interpreter::{Evaluator, Evidence, InferenceError};
+use graphspn::interpreter::{BATCH, Evaluator, Evidence, InferenceError};
 use graphspn::learn::Model;
 use graphspn::map::TopoMap;
 use graphspn_runtime::EvidenceError;
@@ -20,9 +20,53 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-/// One map to compile and test.
+/// How one generated module of a [`Case`] is compiled.
+#[derive(Clone, Copy, Debug)]
+pub struct Variant {
+    /// Scalar type of the generated code.
+    pub precision: Precision,
+    /// Stack budget of the generated marginals (`0`: always the two-pass form).
+    pub max_stack_bytes: usize,
+}
+
+impl Variant {
+    /// `f32` code with the default stack budget.
+    pub const F32: Variant = Variant {
+        precision: Precision::F32,
+        max_stack_bytes: DEFAULT_STACK_BYTES,
+    };
+    /// `f64` code with the default stack budget.
+    pub const F64: Variant = Variant {
+        precision: Precision::F64,
+        max_stack_bytes: DEFAULT_STACK_BYTES,
+    };
+
+    /// Module name suffix, e.g. `f32`, `f64_two_pass`.
+    fn suffix(&self) -> String {
+        let p = match self.precision {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        };
+        if self.max_stack_bytes == 0 {
+            format!("{p}_two_pass")
+        } else {
+            p.to_string()
+        }
+    }
+
+    /// Tolerance of the comparison: log-likelihoods relative, marginals absolute.
+    fn tolerance(&self) -> f64 {
+        match self.precision {
+            Precision::F32 => 1e-4,
+            Precision::F64 => 1e-9,
+        }
+    }
+}
+
+/// One map to compile and test: every variant is compiled into its own module, run
+/// on the same evidence and compared with one interpreter evaluation per vector.
 pub struct Case {
-    /// Module name (a Rust identifier).
+    /// Module name stem (a Rust identifier).
     pub name: String,
     /// The model.
     pub model: Model,
@@ -30,14 +74,30 @@ pub struct Case {
     pub map: TopoMap,
     /// The decompositions.
     pub decs: Vec<Decomposition>,
-    /// Scalar type of the generated code.
-    pub precision: Precision,
+    /// The generated modules (at least one).
+    pub variants: Vec<Variant>,
     /// Number of random evidence vectors.
     pub vectors: usize,
     /// Seed of the evidence.
     pub seed: u64,
-    /// Stack budget of the generated marginals (`0`: always the two-pass form).
-    pub max_stack_bytes: usize,
+}
+
+impl Case {
+    /// Module name of one variant.
+    pub fn module(&self, v: &Variant) -> String {
+        format!("{}_{}", self.name, v.suffix())
+    }
+}
+
+/// The number in environment variable `name`, or `default` when it is not set.
+pub fn env_usize(name: &str, default: usize) -> usize {
+    std::env::var(name)
+        .ok()
+        .map(|v| {
+            v.parse()
+                .unwrap_or_else(|_| panic!("{name}={v} is not a number"))
+        })
+        .unwrap_or(default)
 }
 
 /// Random evidence vectors including extremes; vector `v` uses kind `v % 6`:
@@ -83,9 +143,35 @@ pub fn evidence(rng: &mut ChaCha8Rng, n: usize, c: usize, v: usize) -> Vec<Vec<f
         .collect()
 }
 
+/// Labels for the labelled-likelihood check of vector `v` (`None` = unknown): every
+/// third place gets its row's largest class, every seventh the next class (which may
+/// have zero evidence, so some vectors take the zero-likelihood path), the rest none.
+pub fn probe_labels(e: &[Vec<f64>], v: usize) -> Vec<Option<u32>> {
+    e.iter()
+        .enumerate()
+        .map(|(p, row)| {
+            let best = (0..row.len()).fold(0, |b, k| if row[k] > row[b] { k } else { b });
+            if (p + v).is_multiple_of(3) {
+                Some(best as u32)
+            } else if (p + v) % 7 == 1 {
+                Some(((best + 1) % row.len()) as u32)
+            } else {
+                None
+            }
+        })
+        .collect()
+}
+
+/// Results per evidence vector: log-likelihood, MPE value, labelled log-likelihood
+/// (NaN on error), then `n` MPE labels and `n × c` marginals.
+pub fn stride(n: usize, c: usize) -> usize {
+    3 + n + n * c
+}
+
 /// The temporary crate's main: for every module, reads `<name>.ev` (u64 count, then
-/// count × n × c little-endian f64), writes `<name>.out`: per vector `ll`, `mpe value`
-/// (NaN on error), n labels as f64, n × c marginals; prints the query time.
+/// per vector n × c evidence values and n probe labels, little-endian f64, unknown =
+/// 65535), writes `<name>.out` (per vector: see [`stride`]); prints the query time.
+/// Modules run in parallel threads.
 const MAIN: &str = r#"
 use graphspn_runtime::CompiledMap;
 use std::io::Write;
@@ -98,25 +184,30 @@ where
     let bytes = std::fs::read(dir.join(format!("{name}.ev"))).expect("evidence file");
     let count = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
     let vals: Vec<f64> = bytes[8..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap())).collect();
-    assert_eq!(vals.len(), count * n * c);
+    let per = n * c + n;
+    assert_eq!(vals.len(), count * per);
     let mut evs = vec![vec![M::ZERO_ROW; n]; count];
-    for (v, ev) in evs.iter_mut().enumerate() {
+    let mut probes = vec![vec![0u16; n]; count];
+    for (v, (ev, probe)) in evs.iter_mut().zip(&mut probes).enumerate() {
         for p in 0..n {
             for k in 0..c {
-                ev[p].as_mut()[k] = M::Scalar::from_f64(vals[(v * n + p) * c + k]);
+                ev[p].as_mut()[k] = M::Scalar::from_f64(vals[v * per + p * c + k]);
             }
+            probe[p] = vals[v * per + n * c + p] as u16;
         }
     }
-    let mut out = Vec::with_capacity(count * (2 + n + n * c) * 8);
+    let mut out = Vec::with_capacity(count * (3 + n + n * c) * 8);
     let mut marg = vec![M::ZERO_ROW; n];
     let mut lab = vec![0u16; n];
     let start = std::time::Instant::now();
-    for ev in &evs {
+    for (ev, probe) in evs.iter().zip(&probes) {
         let ll = M::log_likelihood(ev).map_or(f64::NAN, Into::into);
         let mv = M::mpe(ev, &mut lab).map_or(f64::NAN, Into::into);
+        let pl = M::labelled_log_likelihood(probe, ev).map_or(f64::NAN, Into::into);
         let _ = M::marginals(ev, &mut marg);
         out.extend_from_slice(&ll.to_le_bytes());
         out.extend_from_slice(&mv.to_le_bytes());
+        out.extend_from_slice(&pl.to_le_bytes());
         for &l in &lab {
             out.extend_from_slice(&(l as f64).to_le_bytes());
         }
@@ -137,7 +228,11 @@ impl FromF64 for f64 { fn from_f64(x: f64) -> Self { x } }
 
 fn main() {
     let dir = std::path::PathBuf::from(std::env::args().nth(1).expect("data folder"));
-    DISPATCH
+    let dir = dir.as_path();
+    // One thread per module (the query times printed overlap).
+    std::thread::scope(|s| {
+        DISPATCH
+    });
 }
 "#;
 
@@ -164,7 +259,7 @@ pub fn build_crate(dir: &Path, crate_name: &str, modules: &[(String, String)]) -
     for (name, src) in modules {
         std::fs::write(dir.join(format!("src/{name}.rs")), src).unwrap();
         let _ = writeln!(mods, "mod {name} {{ include!(\"{name}.rs\"); }}");
-        let _ = writeln!(dispatch, "run::<{name}::Map>(&dir, {name:?});");
+        let _ = writeln!(dispatch, "s.spawn(|| run::<{name}::Map>(dir, {name:?}));");
     }
     std::fs::write(
         dir.join("src/main.rs"),
@@ -196,32 +291,36 @@ fn close(a: f64, b: f64, rel: f64) -> bool {
     a == b || (a - b).abs() <= rel * b.abs().max(1.0)
 }
 
-/// Generates, builds and runs every case, then checks it against the interpreter:
-/// log-likelihood (relative 1e-4 in f32, 1e-9 in f64), marginals (absolute, same),
-/// MPE value (same relative bound) and the value of the generated MPE labels.
+/// Generates, builds and runs every variant of every case, then checks them against
+/// the interpreter (see [`check_case`]).
 pub fn differential(crate_name: &str, cases: &[Case]) {
     let dir = tempfile::tempdir().unwrap();
     let mut modules = vec![];
     let mut inputs = vec![];
     for case in cases {
-        let opts = CodegenOptions {
-            precision: case.precision,
-            max_stack_bytes: case.max_stack_bytes,
-            ..Default::default()
-        };
-        let src = generate(&case.model, &case.map, &case.decs, &opts)
-            .unwrap_or_else(|e| panic!("{}: {e}", case.name));
-        modules.push((case.name.clone(), src));
         let evs = case_evidence(case);
         let mut bytes = (case.vectors as u64).to_le_bytes().to_vec();
-        for e in &evs {
-            for r in e {
-                for x in r {
-                    bytes.extend_from_slice(&x.to_le_bytes());
-                }
+        for (v, e) in evs.iter().enumerate() {
+            for x in e.iter().flatten() {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+            for l in probe_labels(e, v) {
+                let l = l.map_or(f64::from(u16::MAX), f64::from);
+                bytes.extend_from_slice(&l.to_le_bytes());
             }
         }
-        std::fs::write(dir.path().join(format!("{}.ev", case.name)), bytes).unwrap();
+        for variant in &case.variants {
+            let opts = CodegenOptions {
+                precision: variant.precision,
+                max_stack_bytes: variant.max_stack_bytes,
+                ..Default::default()
+            };
+            let name = case.module(variant);
+            let src = generate(&case.model, &case.map, &case.decs, &opts)
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            std::fs::write(dir.path().join(format!("{name}.ev")), &bytes).unwrap();
+            modules.push((name, src));
+        }
         inputs.push(evs);
     }
     let bin = build_crate(dir.path(), crate_name, &modules);
@@ -232,18 +331,28 @@ pub fn differential(crate_name: &str, cases: &[Case]) {
         String::from_utf8_lossy(&run.stderr)
     );
     let timing = String::from_utf8_lossy(&run.stdout).into_owned();
-    eprint!("generated code, seconds for all queries (ll + mpe + marginals):\n{timing}");
+    eprint!(
+        "generated code, seconds for all queries (ll + mpe + labelled ll + marginals):\n{timing}"
+    );
     for (case, evs) in cases.iter().zip(&inputs) {
         let start = Instant::now();
-        let bytes = std::fs::read(dir.path().join(format!("{}.out", case.name))).unwrap();
-        let vals: Vec<f64> = bytes
-            .chunks_exact(8)
-            .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+        let vals: Vec<Vec<f64>> = case
+            .variants
+            .iter()
+            .map(|v| {
+                let out = dir.path().join(format!("{}.out", case.module(v)));
+                std::fs::read(out)
+                    .unwrap()
+                    .chunks_exact(8)
+                    .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+                    .collect()
+            })
             .collect();
         check_case(case, evs, &vals);
         eprintln!(
-            "{}: {} places, {} vectors (seed {}) agree with the interpreter ({:.1} s)",
+            "{} ({} variants): {} places, {} vectors (seed {}) agree with the interpreter ({:.1} s)",
             case.name,
+            case.variants.len(),
             case.map.num_places(),
             evs.len(),
             case.seed,
@@ -252,18 +361,18 @@ pub fn differential(crate_name: &str, cases: &[Case]) {
     }
 }
 
-/// The evidence vectors of a case (rounded through `f32` for `f32` code).
+/// The evidence vectors of a case, rounded through `f32` when some variant is `f32`
+/// (so that every variant and the interpreter see the same numbers).
 pub fn case_evidence(case: &Case) -> Vec<Vec<Vec<f64>>> {
     let (n, c) = (case.map.num_places(), case.model.classes.len());
+    let round = case.variants.iter().any(|v| v.precision == Precision::F32);
     let mut rng = ChaCha8Rng::seed_from_u64(case.seed);
     (0..case.vectors)
         .map(|v| {
             let mut e = evidence(&mut rng, n, c, v);
-            if case.precision == Precision::F32 {
-                for r in e.iter_mut() {
-                    for x in r.iter_mut() {
-                        *x = *x as f32 as f64;
-                    }
+            if round {
+                for x in e.iter_mut().flatten() {
+                    *x = *x as f32 as f64;
                 }
             }
             e
@@ -271,87 +380,174 @@ pub fn case_evidence(case: &Case) -> Vec<Vec<Vec<f64>>> {
         .collect()
 }
 
-/// Compares generated answers `vals` (per vector: ll, mpe value, n labels, n × c
-/// marginals; NaN values on error) with the interpreter on the instance SPN.
-pub fn check_case(case: &Case, evs: &[Vec<Vec<f64>>], vals: &[f64]) {
+/// Evidence vectors the interpreter evaluates in one batched pass.
+const LANES: usize = BATCH;
+
+/// Every how many batches the labelled log-likelihood is checked (one more
+/// sum-product pass of the interpreter).
+const LABELLED_EVERY: usize = 4;
+
+/// One generated module's answers to a case: module name, tolerance, results.
+type Answers<'a> = (String, f64, &'a [f64]);
+
+/// Compares the generated answers `vals` (one array per variant; per vector see
+/// [`stride`]; NaN values on error) with the interpreter on the instance SPN, which
+/// evaluates each vector once for all variants (batches of [`LANES`] vectors):
+/// log-likelihood, marginals, MPE value, the value the generated MPE labels attain,
+/// and (every [`LABELLED_EVERY`]th batch) the labelled log-likelihood of the
+/// [`probe_labels`]. Tolerances per variant: see [`Variant`].
+pub fn check_case(case: &Case, evs: &[Vec<Vec<f64>>], vals: &[Vec<f64>]) {
     let (n, c) = (case.map.num_places(), case.model.classes.len());
-    let stride = 2 + n + n * c;
-    assert_eq!(vals.len(), evs.len() * stride, "{}: result size", case.name);
+    let stride = stride(n, c);
+    let answers: Vec<Answers> = case
+        .variants
+        .iter()
+        .zip(vals)
+        .map(|(var, v)| {
+            let name = case.module(var);
+            assert_eq!(v.len(), evs.len() * stride, "{name}: result size");
+            (name, var.tolerance(), v.as_slice())
+        })
+        .collect();
     let inst = Instance::build(&case.model, &case.map, case.decs.clone()).unwrap();
     let eval = Evaluator::new(&inst.spn).unwrap();
-    let tol = match case.precision {
-        Precision::F32 => 1e-4,
-        Precision::F64 => 1e-9,
+    // One evaluator (a copy of the network's arrays) per thread, each taking one
+    // contiguous share of the batches.
+    let batches: Vec<&[Vec<Vec<f64>>]> = evs.chunks(LANES).collect();
+    let share = batches.len().div_ceil(rayon::current_num_threads()).max(1);
+    batches
+        .par_chunks(share)
+        .enumerate()
+        .for_each(|(part, group)| {
+            let mut ev = eval.clone();
+            for (i, chunk) in group.iter().enumerate() {
+                let b = part * share + i;
+                let first = b * LANES;
+                let labelled = b.is_multiple_of(LABELLED_EVERY);
+                check_batch(case, &mut ev, &answers, first, chunk, labelled);
+            }
+        });
+}
+
+/// Checks vectors `first .. first + evs.len()` (at most [`LANES`]; a short last
+/// batch is padded with copies of its first vector, whose results are not read).
+fn check_batch(
+    case: &Case,
+    ev: &mut Evaluator,
+    answers: &[Answers],
+    first: usize,
+    evs: &[Vec<Vec<f64>>],
+    labelled: bool,
+) {
+    const K: usize = LANES;
+    let used = evs.len();
+    let lane_ev = |l: usize| &evs[if l < used { l } else { 0 }];
+    let (n, c) = (case.map.num_places(), case.model.classes.len());
+    let stride = stride(n, c);
+    let ctx = |module: &str, l: usize| {
+        let v = first + l;
+        format!(
+            "module {module} seed {} vector {v} (kind {}): evidence {:?}",
+            case.seed,
+            v % 6,
+            evs[l]
+        )
     };
+    let evidence: [Evidence; K] = std::array::from_fn(|l| Evidence::from_rows(lane_ev(l).clone()));
+    let evidence_refs: [&Evidence; K] = std::array::from_fn(|l| &evidence[l]);
     let free = vec![None; n];
-    evs.par_iter().enumerate().for_each_init(
-        || eval.clone(),
-        |ev, (v, e)| {
-            let got = &vals[v * stride..(v + 1) * stride];
-            let ctx = || {
-                format!(
-                    "map {} seed {} vector {v} (kind {}): evidence {e:?}",
-                    case.name,
-                    case.seed,
-                    v % 6
-                )
-            };
-            let evidence = Evidence::from_rows(e.clone());
-            match ev.marginals(&free, &evidence) {
+    let frees: [&[Option<u32>]; K] = [free.as_slice(); K];
+    let got = |vals: &[f64], l: usize| -> Vec<f64> {
+        let v = first + if l < used { l } else { 0 };
+        vals[v * stride..(v + 1) * stride].to_vec()
+    };
+    if labelled {
+        let probes: [Vec<Option<u32>>; K] =
+            std::array::from_fn(|l| probe_labels(lane_ev(l), first + if l < used { l } else { 0 }));
+        let want =
+            ev.log_likelihood_batch(std::array::from_fn(|l| probes[l].as_slice()), evidence_refs);
+        for (name, tol, vals) in answers {
+            for (l, want) in want.iter().enumerate().take(used) {
+                let got = got(vals, l);
+                match want {
+                    Err(InferenceError::Evidence(EvidenceError::ZeroLikelihood)) => {
+                        assert!(
+                            got[2].is_nan(),
+                            "labelled: zero likelihood: {}",
+                            ctx(name, l)
+                        );
+                    }
+                    Err(err) => panic!("interpreter: {err}: {}", ctx(name, l)),
+                    Ok(w) => assert!(
+                        close(got[2], *w, *tol),
+                        "labelled log-likelihood {} vs {w}: {}",
+                        got[2],
+                        ctx(name, l)
+                    ),
+                }
+            }
+        }
+    }
+    let marginals = ev.marginals_batch(frees, evidence_refs);
+    let best = ev.log_max_product_batch(frees, evidence_refs);
+    for (name, tol, vals) in answers {
+        let tol = *tol;
+        let rows: [Vec<f64>; K] = std::array::from_fn(|l| got(vals, l));
+        // The value each lane's generated MPE labels attain.
+        let labels: [Vec<Option<u32>>; K] =
+            std::array::from_fn(|l| rows[l][3..3 + n].iter().map(|&x| Some(x as u32)).collect());
+        let attained =
+            ev.log_max_product_batch(std::array::from_fn(|l| labels[l].as_slice()), evidence_refs);
+        for (l, got) in rows.iter().enumerate().take(used) {
+            let m = match &marginals[l] {
                 Err(InferenceError::Evidence(EvidenceError::ZeroLikelihood)) => {
                     assert!(
                         got[0].is_nan() && got[1].is_nan(),
                         "zero likelihood: {}",
-                        ctx()
+                        ctx(name, l)
                     );
+                    continue;
                 }
-                Err(err) => panic!("interpreter: {err}: {}", ctx()),
-                Ok(m) => {
+                Err(err) => panic!("interpreter: {err}: {}", ctx(name, l)),
+                Ok(m) => m,
+            };
+            assert!(
+                close(got[0], m.log_likelihood, tol),
+                "log-likelihood {} vs {}: {}",
+                got[0],
+                m.log_likelihood,
+                ctx(name, l)
+            );
+            for p in 0..n {
+                for k in 0..c {
+                    let g = got[3 + n + p * c + k];
                     assert!(
-                        close(got[0], m.log_likelihood, tol),
-                        "log-likelihood {} vs {}: {}",
-                        got[0],
-                        m.log_likelihood,
-                        ctx()
-                    );
-                    for p in 0..n {
-                        for k in 0..c {
-                            let g = got[2 + n + p * c + k];
-                            assert!(
-                                (g - m.probs[p][k]).abs() <= tol,
-                                "marginal place {p} class {k}: {g} vs {}: {}",
-                                m.probs[p][k],
-                                ctx()
-                            );
-                        }
-                    }
-                    let mpe = ev.mpe(&free, &evidence).unwrap();
-                    assert!(
-                        close(got[1], mpe.log_max_product, tol),
-                        "mpe value {} vs {}: {}",
-                        got[1],
-                        mpe.log_max_product,
-                        ctx()
-                    );
-                    // That the generated labels attain the max-product value is an
-                    // extra check (one more interpreter pass): every 10th vector.
-                    if v % 10 != 0 {
-                        return;
-                    }
-                    let labels: Vec<Option<u32>> =
-                        got[2..2 + n].iter().map(|&l| Some(l as u32)).collect();
-                    let attained = ev.mpe(&labels, &evidence).unwrap_or_else(|err| {
-                        panic!("generated mpe labels are impossible ({err}): {}", ctx())
-                    });
-                    assert!(
-                        close(attained.log_max_product, mpe.log_max_product, tol),
-                        "generated mpe labels attain {} not {}: {}",
-                        attained.log_max_product,
-                        mpe.log_max_product,
-                        ctx()
+                        (g - m.probs[p][k]).abs() <= tol,
+                        "marginal place {p} class {k}: {g} vs {}: {}",
+                        m.probs[p][k],
+                        ctx(name, l)
                     );
                 }
             }
-        },
-    );
+            let best = *best[l].as_ref().unwrap();
+            assert!(
+                close(got[1], best, tol),
+                "mpe value {} vs {best}: {}",
+                got[1],
+                ctx(name, l)
+            );
+            // The generated labels must attain that value.
+            let attained = attained[l].as_ref().unwrap_or_else(|err| {
+                panic!(
+                    "generated mpe labels are impossible ({err}): {}",
+                    ctx(name, l)
+                )
+            });
+            assert!(
+                close(*attained, best, tol),
+                "generated mpe labels attain {attained} not {best}: {}",
+                ctx(name, l)
+            );
+        }
+    }
 }
