@@ -1,7 +1,8 @@
 //! Generated code vs the interpreter (instance SPN, `Evaluator`) on the same map and
 //! evidence, for `log_likelihood`, `marginals` and `mpe`, on the demo floor and on the
 //! largest COLD map (Saarbrücken seq2_night1, 230 places); prints the speed-up ratios
-//! measured in this run.
+//! measured in this run, and for marginals also against the interpreter's batched mode
+//! (`marginals_batch`, time per query).
 //!
 //! `cargo bench --bench generated_vs_interpreter`
 
@@ -12,7 +13,7 @@ use std::time::{Duration, Instant};
 use criterion::Criterion;
 use graphspn::codegen::Builder;
 use graphspn::instance::Instance;
-use graphspn::interpreter::{Evaluator, Evidence};
+use graphspn::interpreter::{BATCH, Evaluator, Evidence};
 
 macro_rules! bench_map {
     ($c:expr, $m:ident, $file:expr, $ratios:expr) => {{
@@ -55,6 +56,11 @@ macro_rules! bench_map {
         group.bench_function("interpreter/marginals", |b| {
             b.iter(|| eval.marginals(&free, black_box(&ev)))
         });
+        let fixed8: [&[Option<u32>]; BATCH] = [&free; BATCH];
+        let ev8: [&Evidence; BATCH] = [&ev; BATCH];
+        group.bench_function("interpreter/marginals_batch8", |b| {
+            b.iter(|| eval.marginals_batch(fixed8, black_box(ev8)))
+        });
         group.bench_function("generated/mpe", |b| {
             b.iter(|| g::mpe(black_box(&e), &mut labels))
         });
@@ -84,6 +90,10 @@ macro_rules! bench_map {
         let im = time(&mut || {
             black_box(eval.marginals(&free, &ev).ok());
         });
+        // The interpreter's batched mode, per query.
+        let im8 = time(&mut || {
+            let _ = black_box(eval.marginals_batch(fixed8, ev8));
+        }) / BATCH as f64;
         let gp = time(&mut || {
             black_box(g::mpe(black_box(&e), &mut labels).ok());
         });
@@ -91,7 +101,7 @@ macro_rules! bench_map {
             black_box(eval.mpe(&free, &ev).ok());
         });
         $ratios.push(format!(
-            "{name} ({} places, {} instance edges): log_likelihood {:.1} µs vs {:.1} µs ({:.1}x), marginals {:.1} µs vs {:.1} µs ({:.1}x), mpe {:.1} µs vs {:.1} µs ({:.1}x)",
+            "{name} ({} places, {} instance edges): log_likelihood {:.1} µs vs {:.1} µs ({:.1}x), marginals {:.1} µs vs {:.1} µs ({:.1}x), mpe {:.1} µs vs {:.1} µs ({:.1}x); interpreter marginals batched by {BATCH}: {:.1} µs per query ({:.1}x)",
             g::NUM_PLACES,
             eval.num_edges(),
             gl * 1e6,
@@ -102,7 +112,9 @@ macro_rules! bench_map {
             im / gm,
             gp * 1e6,
             ip * 1e6,
-            ip / gp
+            ip / gp,
+            im8 * 1e6,
+            im8 / gm
         ));
     }};
 }

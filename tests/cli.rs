@@ -15,6 +15,18 @@ fn demo(file: &str) -> PathBuf {
         .join(file)
 }
 
+/// `graphspn compile` of the demo floor into `out`.
+fn compile_demo(out: &std::path::Path) -> Command {
+    let mut cmd = bin();
+    cmd.args(["compile", "--module", "floor", "--model"])
+        .arg(demo("model.json"))
+        .arg("--map")
+        .arg(demo("floor.json"))
+        .arg("--out")
+        .arg(out);
+    cmd
+}
+
 fn run_ok(cmd: &mut Command) -> String {
     let out = cmd.output().expect("graphspn runs");
     assert!(
@@ -101,41 +113,19 @@ fn instance_exports_dot_and_compile_writes_generated_source() {
     assert!(dot.starts_with("digraph instance {") && dot.trim_end().ends_with('}'));
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("floor.rs");
-    run_ok(
-        bin()
-            .args(["compile", "--module", "floor", "--model"])
-            .arg(demo("model.json"))
-            .arg("--map")
-            .arg(demo("floor.json"))
-            .arg("--out")
-            .arg(&out),
-    );
+    run_ok(&mut compile_demo(&out));
     let src = std::fs::read_to_string(&out).unwrap();
     assert!(src.starts_with("// @generated"), "{}", &src[..80]);
     assert!(src.contains("pub const NUM_PLACES: usize = 80;"));
     // A hand-written file is not overwritten without --force.
     std::fs::write(&out, "// mine\n").unwrap();
-    let status = bin()
-        .args(["compile", "--module", "floor", "--model"])
-        .arg(demo("model.json"))
-        .arg("--map")
-        .arg(demo("floor.json"))
-        .arg("--out")
-        .arg(&out)
-        .status()
-        .unwrap();
+    let status = compile_demo(&out).status().unwrap();
     assert!(!status.success());
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "// mine\n");
     // Nor is an existing --export-map file with other content.
     let exported = dir.path().join("map.json");
     std::fs::write(&exported, "{}").unwrap();
-    let status = bin()
-        .args(["compile", "--module", "floor", "--model"])
-        .arg(demo("model.json"))
-        .arg("--map")
-        .arg(demo("floor.json"))
-        .arg("--out")
-        .arg(dir.path().join("other.rs"))
+    let status = compile_demo(&dir.path().join("other.rs"))
         .arg("--export-map")
         .arg(&exported)
         .status()

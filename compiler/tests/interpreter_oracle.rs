@@ -167,14 +167,9 @@ fn random_evidence(rng: &mut ChaCha8Rng, classes: &[u32]) -> Vec<Vec<f64>> {
 }
 
 /// What one case checked (for coverage assertions).
-#[derive(Default, Debug)]
-struct Checked {
-    zero_likelihood: bool,
-    trees_checked: bool,
-}
-
-fn check_case(case_seed: u64, selective: bool) -> Result<Checked, String> {
-    let params = RandomSpnParams {
+/// Random SPNs small enough to enumerate: up to 6 variables of up to 4 classes.
+fn small_spn_params(selective: bool) -> RandomSpnParams {
+    RandomSpnParams {
         max_vars: 6,
         max_classes: 4,
         max_depth: 5,
@@ -182,7 +177,17 @@ fn check_case(case_seed: u64, selective: bool) -> Result<Checked, String> {
         zero_weight_prob: 0.15,
         share_prob: 0.3,
         selective,
-    };
+    }
+}
+
+#[derive(Default, Debug)]
+struct Checked {
+    zero_likelihood: bool,
+    trees_checked: bool,
+}
+
+fn check_case(case_seed: u64, selective: bool) -> Result<Checked, String> {
+    let params = small_spn_params(selective);
     let spn = random_spn(case_seed, &params);
     let ctx = |what: &str| {
         format!(
@@ -406,15 +411,7 @@ fn tiny_evidence_does_not_underflow() {
 #[test]
 fn batched_queries_agree_with_single_queries() {
     const K: usize = BATCH;
-    let params = RandomSpnParams {
-        max_vars: 6,
-        max_classes: 4,
-        max_depth: 5,
-        max_children: 4,
-        zero_weight_prob: 0.15,
-        share_prob: 0.3,
-        selective: false,
-    };
+    let params = small_spn_params(false);
     let near = |a: &Result<f64, InferenceError>, b: &Result<f64, InferenceError>| match (a, b) {
         (Ok(x), Ok(y)) => close_rel(*x, *y, 1e-13),
         _ => a == b,
