@@ -20,7 +20,7 @@ use graphspn::learn::Model;
 use graphspn::map::cold;
 use graphspn_generated::demo_floor;
 
-/// Largest COLD map compiled by default.
+/// Largest COLD map compiled unless `GRAPHSPN_MAX_PLACES` lowers it: no cap by default.
 const MAX_PLACES: usize = usize::MAX;
 /// Evidence vectors per map.
 const VECTORS: usize = 10_000;
