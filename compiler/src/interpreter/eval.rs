@@ -266,10 +266,8 @@ impl Evaluator {
                             let c = val[self.child[k] as usize];
                             let t: [f64; K] =
                                 exp_lanes(std::array::from_fn(|l| self.log_w[k] + c[l] - m[l]));
+                            // A lane with m = -∞ sums NaNs here; its value is -∞ below.
                             for l in 0..K {
-                                if m[l] == NEG_INF {
-                                    continue;
-                                }
                                 acc[l] += t[l];
                             }
                         }
@@ -306,7 +304,7 @@ impl Evaluator {
         fixed: &[Option<u32>],
         evidence: &Evidence,
     ) -> Result<f64, InferenceError> {
-        let [r] = self.log_likelihood_lanes([fixed], [evidence]);
+        let [r] = self.root_lanes(Pass::SumProduct, [fixed], [evidence]);
         r
     }
 
@@ -319,7 +317,7 @@ impl Evaluator {
         fixed: [&[Option<u32>]; BATCH],
         evidence: [&Evidence; BATCH],
     ) -> [Result<f64, InferenceError>; BATCH] {
-        self.log_likelihood_lanes(fixed, evidence)
+        self.root_lanes(Pass::SumProduct, fixed, evidence)
     }
 
     /// `ln S` and `P(Y_v = c | evidence, fixed)` for every variable and class, in one
@@ -360,9 +358,7 @@ impl Evaluator {
         fixed: [&[Option<u32>]; K],
         evidence: [&Evidence; K],
     ) -> [Result<Marginals, InferenceError>; K] {
-        let checks = self.prepare(fixed, evidence);
-        let root = self.upward::<K>(Pass::SumProduct);
-        let lls = lane_results(checks, root);
+        let lls = self.root_lanes(Pass::SumProduct, fixed, evidence);
         let n = self.kind.len();
         let total = self.slot_start[self.classes.len()];
         self.flow.clear();
@@ -492,7 +488,7 @@ impl Evaluator {
         fixed: &[Option<u32>],
         evidence: &Evidence,
     ) -> Result<f64, InferenceError> {
-        let [r] = self.log_max_product_lanes([fixed], [evidence]);
+        let [r] = self.root_lanes(Pass::MaxProduct, [fixed], [evidence]);
         r
     }
 
@@ -503,30 +499,19 @@ impl Evaluator {
         fixed: [&[Option<u32>]; BATCH],
         evidence: [&Evidence; BATCH],
     ) -> [Result<f64, InferenceError>; BATCH] {
-        self.log_max_product_lanes(fixed, evidence)
+        self.root_lanes(Pass::MaxProduct, fixed, evidence)
     }
-}
 
-impl Evaluator {
-    /// [`Evaluator::log_likelihood`] of `K` queries in `K` lanes.
-    fn log_likelihood_lanes<const K: usize>(
+    /// The root's value of `K` queries in `K` lanes after one upward `pass`:
+    /// [`Evaluator::log_likelihood`] or [`Evaluator::log_max_product`].
+    fn root_lanes<const K: usize>(
         &mut self,
+        pass: Pass,
         fixed: [&[Option<u32>]; K],
         evidence: [&Evidence; K],
     ) -> [Result<f64, InferenceError>; K] {
         let checks = self.prepare(fixed, evidence);
-        let root = self.upward::<K>(Pass::SumProduct);
-        lane_results(checks, root)
-    }
-
-    /// [`Evaluator::log_max_product`] of `K` queries in `K` lanes.
-    fn log_max_product_lanes<const K: usize>(
-        &mut self,
-        fixed: [&[Option<u32>]; K],
-        evidence: [&Evidence; K],
-    ) -> [Result<f64, InferenceError>; K] {
-        let checks = self.prepare(fixed, evidence);
-        let root = self.upward::<K>(Pass::MaxProduct);
+        let root = self.upward::<K>(pass);
         lane_results(checks, root)
     }
 }
