@@ -166,7 +166,6 @@ fn random_evidence(rng: &mut ChaCha8Rng, classes: &[u32]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// What one case checked (for coverage assertions).
 /// Random SPNs small enough to enumerate: up to 6 variables of up to 4 classes.
 fn small_spn_params(selective: bool) -> RandomSpnParams {
     RandomSpnParams {
@@ -180,6 +179,7 @@ fn small_spn_params(selective: bool) -> RandomSpnParams {
     }
 }
 
+/// What one case checked (for coverage assertions).
 #[derive(Default, Debug)]
 struct Checked {
     zero_likelihood: bool,

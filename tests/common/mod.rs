@@ -292,8 +292,8 @@ fn close(a: f64, b: f64, rel: f64) -> bool {
 }
 
 /// Generates, builds and runs every variant of every case, then checks them against
-/// the interpreter (see [`check_case`]).
-pub fn differential(crate_name: &str, cases: &[Case]) {
+/// the interpreter (see [`check_case`]). Returns the generated modules (name, source).
+pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
     let dir = tempfile::tempdir().unwrap();
     let mut modules = vec![];
     let mut inputs = vec![];
@@ -359,6 +359,7 @@ pub fn differential(crate_name: &str, cases: &[Case]) {
             start.elapsed().as_secs_f64()
         );
     }
+    modules
 }
 
 /// The evidence vectors of a case, rounded through `f32` when some variant is `f32`
@@ -441,7 +442,8 @@ fn check_batch(
 ) {
     const K: usize = LANES;
     let used = evs.len();
-    let lane_ev = |l: usize| &evs[if l < used { l } else { 0 }];
+    // The vector a lane evaluates (padding lanes repeat the first).
+    let lane = |l: usize| if l < used { l } else { 0 };
     let (n, c) = (case.map.num_places(), case.model.classes.len());
     let stride = stride(n, c);
     let ctx = |module: &str, l: usize| {
@@ -453,22 +455,24 @@ fn check_batch(
             evs[l]
         )
     };
-    let evidence: [Evidence; K] = std::array::from_fn(|l| Evidence::from_rows(lane_ev(l).clone()));
+    let evidence: [Evidence; K] =
+        std::array::from_fn(|l| Evidence::from_rows(evs[lane(l)].clone()));
     let evidence_refs: [&Evidence; K] = std::array::from_fn(|l| &evidence[l]);
     let free = vec![None; n];
     let frees: [&[Option<u32>]; K] = [free.as_slice(); K];
-    let got = |vals: &[f64], l: usize| -> Vec<f64> {
-        let v = first + if l < used { l } else { 0 };
-        vals[v * stride..(v + 1) * stride].to_vec()
+    // Where a lane's results are in a module's answers.
+    let span = |l: usize| {
+        let v = first + lane(l);
+        v * stride..(v + 1) * stride
     };
     if labelled {
         let probes: [Vec<Option<u32>>; K] =
-            std::array::from_fn(|l| probe_labels(lane_ev(l), first + if l < used { l } else { 0 }));
+            std::array::from_fn(|l| probe_labels(&evs[lane(l)], first + lane(l)));
         let want =
             ev.log_likelihood_batch(std::array::from_fn(|l| probes[l].as_slice()), evidence_refs);
         for (name, tol, vals) in answers {
             for (l, want) in want.iter().enumerate().take(used) {
-                let got = got(vals, l);
+                let got = &vals[span(l)];
                 match want {
                     Err(InferenceError::Evidence(EvidenceError::ZeroLikelihood)) => {
                         assert!(
@@ -492,7 +496,7 @@ fn check_batch(
     let best = ev.log_max_product_batch(frees, evidence_refs);
     for (name, tol, vals) in answers {
         let tol = *tol;
-        let rows: [Vec<f64>; K] = std::array::from_fn(|l| got(vals, l));
+        let rows: [&[f64]; K] = std::array::from_fn(|l| &vals[span(l)]);
         // The value each lane's generated MPE labels attain.
         let labels: [Vec<Option<u32>>; K] =
             std::array::from_fn(|l| rows[l][3..3 + n].iter().map(|&x| Some(x as u32)).collect());

@@ -181,9 +181,11 @@ pub fn check_module_name(name: &str) -> Result<(), BuildError> {
 /// [`BuildError::NotGenerated`]); a missing file or a generated one is fine.
 fn check_replaceable(path: &Path) -> Result<(), BuildError> {
     match std::fs::read(path) {
-        Ok(old) if !old.starts_with(GENERATED_MARKER.as_bytes()) => Err(BuildError::NotGenerated {
-            path: path.to_path_buf(),
-        }),
+        Ok(old) if !is_generated_file(&String::from_utf8_lossy(&old)) => {
+            Err(BuildError::NotGenerated {
+                path: path.to_path_buf(),
+            })
+        }
         _ => Ok(()),
     }
 }
