@@ -156,7 +156,10 @@ impl ReproduceConfig {
             decomposition: DecompositionParams::default(),
             training: TrainingSettings::default(),
             cooccurrence: CooccurrenceParams::default(),
-            bp: BpOptions::default(),
+            bp: BpOptions {
+                max_iterations: 200,
+                ..BpOptions::default()
+            },
             wrong_draw: WrongClassDraw::Others,
             novelty: true,
             grid: ValidationGrid::standard(),
