@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use graphspn::codegen::{Builder, Precision, is_generated_file};
+use graphspn::codegen::{Builder, Precision, Vectorisation, is_generated_file};
 
 fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
@@ -16,10 +16,15 @@ fn demo() -> PathBuf {
 
 /// The demo floor's module, generated with the inputs of `generated/build.rs`.
 fn demo_source(precision: Precision) -> String {
+    demo_source_for(precision, Vectorisation::Simd)
+}
+
+fn demo_source_for(precision: Precision, v: Vectorisation) -> String {
     Builder::new(demo().join("model.json"), demo().join("floor.json"))
         .seed(0)
         .count(5)
         .precision(precision)
+        .vectorisation(v)
         .generate()
         .unwrap()
 }
@@ -82,8 +87,12 @@ fn same_inputs_give_byte_identical_output() {
 #[test]
 fn generated_code_links_without_std_alloc_or_any_panic_path() {
     let dir = tempfile::tempdir().unwrap();
-    for (module, precision) in [("m32", Precision::F32), ("m64", Precision::F64)] {
-        let src = demo_source(precision);
+    for (module, precision, v) in [
+        ("m32", Precision::F32, Vectorisation::Simd),
+        ("m64", Precision::F64, Vectorisation::Simd),
+        ("s32", Precision::F32, Vectorisation::Scalar),
+    ] {
+        let src = demo_source_for(precision, v);
         std::fs::create_dir_all(dir.path().join("src")).unwrap();
         std::fs::write(dir.path().join(format!("src/{module}.rs")), src).unwrap();
     }
@@ -148,6 +157,8 @@ use graphspn_runtime::CompiledMap;
 mod m32 { include!("m32.rs"); }
 #[cfg(not(panic_control))]
 mod m64 { include!("m64.rs"); }
+#[cfg(not(panic_control))]
+mod s32 { include!("s32.rs"); }
 
 unsafe extern "C" {
     /// Defined nowhere: the binary links only if no path reaches the panic handler.
@@ -184,7 +195,23 @@ macro_rules! exercise {
         let _ = black_box(<$m::Map as CompiledMap>::marginals(es, out.get_mut(..n).unwrap_or(&mut [])));
         let _ = black_box(<$m::Map as CompiledMap>::mpe(es, labels.get_mut(..n).unwrap_or(&mut [])));
         let _ = black_box(<$m::Map as CompiledMap>::labelled_log_likelihood(labels.get(..n).unwrap_or(&[]), es));
-        black_box((&out, &labels));
+        // The streaming state: every update and query, at an opaque place.
+        let mut s = $m::State::new();
+        let p = black_box(3usize);
+        let row = black_box(EVIDENCE[0]);
+        let _ = black_box(s.set_evidence(p, &row));
+        let _ = black_box(s.observe(p, &row));
+        let _ = black_box(s.clear_evidence(p));
+        let _ = black_box(s.set_all(e));
+        let _ = black_box(s.log_likelihood());
+        let _ = black_box(s.marginals(&mut out));
+        let mut one = [0.0; NUM_CLASSES];
+        let _ = black_box(s.marginal(p, &mut one));
+        let _ = black_box(s.mpe(&mut labels));
+        let _ = black_box(s.labelled_log_likelihood(&labels));
+        let _ = black_box(<$m::Map as CompiledMap>::set_evidence(&mut s, p, &row));
+        let _ = black_box(<$m::Map as CompiledMap>::state_marginals(&mut s, out.get_mut(..n).unwrap_or(&mut [])));
+        black_box((&out, &labels, &one, &s));
     }};
 }
 
@@ -194,6 +221,7 @@ pub extern "C" fn _start() -> ! {
     {
         exercise!(m32);
         exercise!(m64);
+        exercise!(s32);
     }
     #[cfg(panic_control)]
     {

@@ -4,7 +4,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use graphspn_compiler::codegen::{Builder, Precision, check_module_name, write_if_changed};
+use graphspn_compiler::codegen::{
+    Builder, Precision, Vectorisation, check_module_name, write_if_changed,
+};
 use graphspn_compiler::map::TopoMap;
 
 /// Arguments of `graphspn compile`.
@@ -28,10 +30,13 @@ pub struct CompileArgs {
     /// Generate f64 code (default f32).
     #[arg(long)]
     f64: bool,
-    /// Largest stack scratch (bytes) the generated `marginals` may use; above it the
-    /// marginals take two passes instead of one.
+    /// Stack budget (bytes): fail when a generated entry point could need more.
     #[arg(long, default_value_t = graphspn::codegen::DEFAULT_STACK_BYTES)]
     max_stack_bytes: usize,
+    /// Code for a target without float SIMD (Cortex-M, RISC-V MCUs): one component
+    /// per call instead of SIMD lane groups.
+    #[arg(long)]
+    scalar: bool,
     /// Name of the module the file is meant for (a Rust identifier; shown in the
     /// `include!` line printed at the end).
     #[arg(long, default_value = "map")]
@@ -57,6 +62,11 @@ pub fn run(args: CompileArgs) -> Result<()> {
         .overwrite(args.force)
         .cargo_metadata(false)
         .max_stack_bytes(args.max_stack_bytes)
+        .vectorisation(if args.scalar {
+            Vectorisation::Scalar
+        } else {
+            Vectorisation::Simd
+        })
         .precision(if args.f64 {
             Precision::F64
         } else {
@@ -70,7 +80,22 @@ pub fn run(args: CompileArgs) -> Result<()> {
     if let Some(path) = &args.export_map {
         export_map(&inputs.map, path, args.force)?;
     }
-    let out = b.write_from(&inputs)?;
+    let (out, r) = b.write_report_from(&inputs)?;
+    eprintln!(
+        "{} components, {} lane(s) per call; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}",
+        r.components,
+        r.lanes,
+        r.stack_log_likelihood,
+        r.stack_marginals,
+        r.stack_mpe,
+        r.stack_state,
+        r.state_bytes,
+        r.table_bytes,
+        r.macs_log_likelihood,
+        r.macs_marginals,
+        r.macs_mpe,
+        r.macs_observe_marginals
+    );
     eprintln!(
         "wrote {}: {} places, {} classes, {} decompositions, {} bytes",
         out.display(),

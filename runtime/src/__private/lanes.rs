@@ -34,7 +34,9 @@ pub type Lanes32 = wide::f32x8;
 pub type Lanes64 = wide::f64x4;
 
 /// A SIMD vector with one lane per component (see the module docs).
-pub trait Lanes: Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign {
+pub trait Lanes:
+    Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign + core::ops::Div<Output = Self>
+{
     /// The scalar of one lane.
     type Scalar: Real;
     /// All lanes `0`.
@@ -49,6 +51,26 @@ pub trait Lanes: Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign {
     fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self);
     /// Lane `l` (`0` when out of range).
     fn lane(self, l: usize) -> Self::Scalar;
+    /// Sets lane `l` to `v` (no effect when out of range).
+    fn set_lane(&mut self, l: usize, v: Self::Scalar);
+    /// Sum of the lanes of every vector of `v`, lane by lane: `Σ_i v[i]`.
+    #[inline(always)]
+    fn sum<const K: usize>(v: &[Self; K]) -> Self {
+        let mut s = Self::ZERO;
+        for &x in v {
+            s += x;
+        }
+        s
+    }
+    /// Lane-wise maximum over the vectors of `v` (`0` for an empty array).
+    #[inline(always)]
+    fn max_of<const K: usize>(v: &[Self; K]) -> Self {
+        let mut s = Self::ZERO;
+        for &x in v {
+            s = s.max(x);
+        }
+        s
+    }
 }
 
 macro_rules! lanes_impl {
@@ -78,12 +100,64 @@ macro_rules! lanes_impl {
             fn lane(self, l: usize) -> $t {
                 self.to_array().get(l).copied().unwrap_or(0.0)
             }
+            #[inline(always)]
+            fn set_lane(&mut self, l: usize, v: $t) {
+                let mut a = self.to_array();
+                if let Some(o) = a.get_mut(l) {
+                    *o = v;
+                }
+                *self = $v::from(a);
+            }
         }
     };
 }
 
 lanes_impl!(Lanes32, f32);
 lanes_impl!(Lanes64, f64);
+
+/// One component per call: the scalar itself is the "vector" (targets without float
+/// SIMD, e.g. Cortex-M4F or RISC-V MCUs). Multiply-adds are not fused (no `fma` in
+/// `core`), so results are bit-identical on every IEEE target.
+macro_rules! scalar_lanes {
+    ($t:ident) => {
+        impl Lanes for $t {
+            type Scalar = $t;
+            const ZERO: Self = 0.0;
+            #[inline(always)]
+            fn splat(s: $t) -> Self {
+                s
+            }
+            #[inline(always)]
+            fn mul_add(self, a: Self, b: Self) -> Self {
+                self * a + b
+            }
+            #[inline(always)]
+            fn max(self, o: Self) -> Self {
+                if o > self { o } else { self }
+            }
+            #[inline(always)]
+            fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
+                if p > *best {
+                    *best = p;
+                    *arg = code;
+                }
+            }
+            #[inline(always)]
+            fn lane(self, l: usize) -> $t {
+                if l == 0 { self } else { 0.0 }
+            }
+            #[inline(always)]
+            fn set_lane(&mut self, l: usize, v: $t) {
+                if l == 0 {
+                    *self = v;
+                }
+            }
+        }
+    };
+}
+
+scalar_lanes!(f32);
+scalar_lanes!(f64);
 
 /// `out[m] += Σ_i w[m][i]·a[i]`.
 #[inline(never)]
