@@ -73,6 +73,13 @@ pub fn calibrate() -> (u64, u64, u64) {
 unsafe extern "C" {
     /// End of `.bss` (cortex-m-rt's start of the heap region): the stack's floor.
     static __sheap: u32;
+    /// Start of `.data`, the first section in RAM (cortex-m-rt's `link.x`).
+    static __sdata: u32;
+}
+
+/// Bytes of RAM taken by statics (`.data`, `.bss`, `.uninit`).
+pub fn static_ram() -> usize {
+    &raw const __sheap as usize - &raw const __sdata as usize
 }
 
 /// Bytes left unpainted below this frame (room for the painting function's own).

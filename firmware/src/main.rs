@@ -15,6 +15,7 @@
 //! ```text
 //! firmware <target>
 //! calibration loop_instructions=<n> measured=<n> overhead=<n>
+//! ram static=<bytes of .data + .bss>
 //! map <name> places=<n> classes=<n>
 //! call <entry point> instructions=<n> stack=<bytes> value=<f32 bits, hex>|error=<e>
 //! marginals <place> <f32 bits, hex> ...
@@ -70,6 +71,7 @@ pub fn run(out: &mut impl Write) -> core::fmt::Result {
         out,
         "calibration loop_instructions={loop_instructions} measured={measured} overhead={overhead}"
     )?;
+    writeln!(out, "ram static={}", platform::static_ram())?;
     run_map::<DemoFloor>(out, evidence::SEED)?;
     run_map::<Saarbrucken>(out, evidence::SEED + 1)?;
     writeln!(out, "done")

@@ -7,7 +7,7 @@
 //! loader places `.data` directly at its run address.
 
 use core::arch::{asm, global_asm};
-use core::sync::atomic::{AtomicU64, Ordering};
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use crate::Measured;
 use crate::calls::CallResult;
@@ -68,7 +68,7 @@ fn instret() -> u64 {
 }
 
 /// Instructions of an empty measurement, subtracted from every measurement.
-static OVERHEAD: AtomicU64 = AtomicU64::new(0);
+static OVERHEAD: AtomicU32 = AtomicU32::new(0);
 
 /// Runs a loop of exactly 2²¹ instructions (2²⁰ × `addi`, `bnez`) and returns
 /// `(2²¹, instructions measured, overhead instructions)`.
@@ -77,7 +77,7 @@ pub fn calibrate() -> (u64, u64, u64) {
     let t0 = instret();
     let t1 = instret();
     let overhead = t1 - t0;
-    OVERHEAD.store(overhead, Ordering::SeqCst);
+    OVERHEAD.store(overhead as u32, Ordering::SeqCst);
     let t0 = instret();
     // SAFETY: a register-only countdown loop.
     unsafe {
@@ -90,6 +90,13 @@ pub fn calibrate() -> (u64, u64, u64) {
 unsafe extern "C" {
     /// End of `.bss` (from `rv32.x`): the stack's floor.
     static _ebss: u32;
+    /// Start of `.data`, the first section in RAM (from `rv32.x`).
+    static _sdata: u32;
+}
+
+/// Bytes of RAM taken by statics (`.data`, `.bss`).
+pub fn static_ram() -> usize {
+    &raw const _ebss as usize - &raw const _sdata as usize
 }
 
 /// Bytes left unpainted below this frame (room for the painting function's own).
@@ -113,7 +120,7 @@ pub fn measure(f: fn() -> CallResult) -> Measured {
     let used = unsafe { crate::stack::used(lo, hi) };
     Measured {
         result,
-        instructions: (t1 - t0).saturating_sub(OVERHEAD.load(Ordering::SeqCst)),
+        instructions: (t1 - t0).saturating_sub(u64::from(OVERHEAD.load(Ordering::SeqCst))),
         stack: if used == 0 { 0 } else { used + (sp - hi) },
     }
 }
