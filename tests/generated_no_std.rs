@@ -12,7 +12,6 @@ use std::path::PathBuf;
 use graphspn::codegen::{Builder, Precision, is_generated_file};
 use no_panic_probe::demo_source;
 
-
 fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
 }

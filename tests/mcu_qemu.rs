@@ -20,10 +20,10 @@
 //! scripts/setup-mcu.sh` (CI's `.ci/run` calls it); the test fails if they are
 //! missing. The firmware builds into `target/firmware/`.
 
-mod no_panic_probe;
 #[allow(dead_code)]
 #[path = "../firmware/src/evidence.rs"]
 mod evidence;
+mod no_panic_probe;
 
 use std::io::Read;
 use std::path::PathBuf;
@@ -196,7 +196,10 @@ fn build_firmware(targets: &[&str], profile: &str, rustflags: Option<&str>) {
 
 fn elf(target: &str, profile: &str) -> PathBuf {
     let dir = if profile == "dev" { "debug" } else { profile };
-    target_dir().join(target).join(dir).join("graphspn-firmware")
+    target_dir()
+        .join(target)
+        .join(dir)
+        .join("graphspn-firmware")
 }
 
 /// QEMU's folder as `scripts/setup-mcu.sh` unpacks it.
@@ -278,7 +281,12 @@ fn run_qemu(target: &str, profile: &str) -> Report {
     let mut cmd = match target {
         THUMB => {
             let mut c = qemu("qemu-system-arm");
-            c.args(["-M", "netduinoplus2", "-semihosting-config", "enable=on,target=native"]);
+            c.args([
+                "-M",
+                "netduinoplus2",
+                "-semihosting-config",
+                "enable=on,target=native",
+            ]);
             c.args(["-serial", "null"]);
             c
         }
@@ -289,9 +297,19 @@ fn run_qemu(target: &str, profile: &str) -> Report {
         }
         _ => unreachable!(),
     };
-    cmd.args(["-nographic", "-monitor", "none", "-icount", "shift=0", "-kernel"])
-        .arg(&kernel);
-    parse(&run_bounded(cmd, &format!("QEMU {target} {}", kernel.display())))
+    cmd.args([
+        "-nographic",
+        "-monitor",
+        "none",
+        "-icount",
+        "shift=0",
+        "-kernel",
+    ])
+    .arg(&kernel);
+    parse(&run_bounded(
+        cmd,
+        &format!("QEMU {target} {}", kernel.display()),
+    ))
 }
 
 /// Answers of the in-process host build (`graphspn-generated`) of one map.
@@ -305,7 +323,13 @@ struct HostAnswers {
 fn inputs(index: u64, places: usize, classes: usize, unknown: u16) -> (Vec<f32>, Vec<u16>) {
     let mut rows = vec![0.0f32; places * classes];
     let mut labels = vec![0u16; places];
-    evidence::fill(evidence::SEED + index, classes, &mut rows, &mut labels, unknown);
+    evidence::fill(
+        evidence::SEED + index,
+        classes,
+        &mut rows,
+        &mut labels,
+        unknown,
+    );
     (rows, labels)
 }
 
@@ -368,13 +392,21 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     let value = |i: usize| -> f64 {
         let call = &m.calls[i];
         f64::from(f32::from_bits(
-            *call.value.as_ref().unwrap_or_else(|e| panic!("{}: error {e}", ctx(&call.name))),
+            *call
+                .value
+                .as_ref()
+                .unwrap_or_else(|e| panic!("{}: error {e}", ctx(&call.name))),
         ))
     };
     let names: Vec<&str> = m.calls.iter().map(|c| c.name.as_str()).collect();
     assert_eq!(
         names,
-        ["log_likelihood", "marginals", "mpe", "labelled_log_likelihood"],
+        [
+            "log_likelihood",
+            "marginals",
+            "mpe",
+            "labelled_log_likelihood"
+        ],
         "{}",
         ctx("calls")
     );
@@ -401,10 +433,19 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
         }
     }
     let best = ev.log_max_product(&free, &evidence).unwrap();
-    assert!(close(value(2), best), "{}: {} vs interpreter {best}", ctx("mpe"), value(2));
+    assert!(
+        close(value(2), best),
+        "{}: {} vs interpreter {best}",
+        ctx("mpe"),
+        value(2)
+    );
     let fixed: Vec<Option<u32>> = m.mpe.iter().map(|&l| Some(u32::from(l))).collect();
     let attained = ev.log_max_product(&fixed, &evidence).unwrap();
-    assert!(close(attained, best), "{}: labels attain {attained} not {best}", ctx("mpe"));
+    assert!(
+        close(attained, best),
+        "{}: labels attain {attained} not {best}",
+        ctx("mpe")
+    );
     let probe: Vec<Option<u32>> = labels
         .iter()
         .map(|&l| (l != unknown).then_some(u32::from(l)))
@@ -419,11 +460,23 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     // The x86-64-v3 host build: same tolerances, and count differing bits.
     let mut differ = 0;
     for (i, h) in host.values.iter().enumerate() {
-        let h = h.as_ref().unwrap_or_else(|e| panic!("host {}: {e}", ctx(names[i])));
-        assert!(close(value(i), f64::from(*h)), "{}: {} vs host {h}", ctx(names[i]), value(i));
+        let h = h
+            .as_ref()
+            .unwrap_or_else(|e| panic!("host {}: {e}", ctx(names[i])));
+        assert!(
+            close(value(i), f64::from(*h)),
+            "{}: {} vs host {h}",
+            ctx(names[i]),
+            value(i)
+        );
         differ += usize::from(m.calls[i].value != Ok(h.to_bits()));
     }
-    for (got, h) in m.marginals.iter().flatten().zip(host.marginals.iter().flatten()) {
+    for (got, h) in m
+        .marginals
+        .iter()
+        .flatten()
+        .zip(host.marginals.iter().flatten())
+    {
         assert!((f64::from(f32::from_bits(*got)) - f64::from(*h)).abs() <= TOL);
         differ += usize::from(*got != h.to_bits());
     }
@@ -453,12 +506,18 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
     drop(qemu("qemu-system-arm"));
     drop(qemu("qemu-system-riscv32"));
     build_firmware(&[THUMB, RISCV], "release", None);
-    // The host at the x86-64 baseline (no FMA); dev profile: optimisation does not
-    // change IEEE results, and it compiles faster.
-    build_firmware(&[HOST], "dev", Some("-C target-cpu=x86-64"));
+    // The host at the x86-64 baseline (no FMA), same profile (shares the build
+    // script's compiled dependencies with the MCU builds).
+    build_firmware(&[HOST], "release", Some("-C target-cpu=x86-64"));
     let built = start.elapsed();
-    let baseline = parse(&run_bounded(Command::new(elf(HOST, "dev")), "host baseline firmware"));
-    let reports = [(THUMB, run_qemu(THUMB, "release")), (RISCV, run_qemu(RISCV, "release"))];
+    let baseline = parse(&run_bounded(
+        Command::new(elf(HOST, "release")),
+        "host baseline firmware",
+    ));
+    let reports = [
+        (THUMB, run_qemu(THUMB, "release")),
+        (RISCV, run_qemu(RISCV, "release")),
+    ];
     let hosts = [
         host_answers!(demo_floor, 0),
         host_answers!(saarbrucken_seq2_night1, 1),
@@ -516,6 +575,54 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         built.as_secs_f64(),
         (start.elapsed() - built).as_secs_f64()
     );
+}
+
+/// Crates a firmware's build must not compile: host-only parts of graphspn-compiler
+/// (parallelism, progress bars) and the command-line tool's and tests' crates.
+const HOST_ONLY_CRATES: &[&str] = &[
+    "rayon",
+    "rayon-core",
+    "indicatif",
+    "console",
+    "clap",
+    "anyhow",
+    "criterion",
+    "proptest",
+    "roxmltree",
+    "tempfile",
+    "insta",
+];
+
+/// The firmware's dependency tree (normal and build dependencies, Cortex-M4F) has
+/// none of [`HOST_ONLY_CRATES`]: its build.rs uses graphspn-compiler with only the
+/// `codegen` feature.
+#[test]
+fn firmware_build_dependencies_have_no_host_only_crates() {
+    let out = Command::new(env!("CARGO"))
+        .current_dir(root().join("firmware"))
+        .args(["tree", "--quiet", "--target", THUMB, "-e", "normal,build"])
+        .args(["--prefix", "none", "--format", "{p} {f}"])
+        .output()
+        .unwrap();
+    let tree = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && tree.contains("graphspn-compiler"),
+        "cargo tree failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for line in tree.lines() {
+        let name = line.split_whitespace().next().unwrap_or("");
+        assert!(
+            !HOST_ONLY_CRATES.contains(&name),
+            "the firmware's build compiles the host-only crate {line:?}"
+        );
+        if name == "graphspn-compiler" {
+            assert!(
+                !line.contains("host"),
+                "graphspn-compiler with its `host` feature: {line:?}"
+            );
+        }
+    }
 }
 
 /// The no-panic link check of `generated_no_std.rs`, for Cortex-M4F.

@@ -67,10 +67,10 @@ macro_rules! compiled {
         }
 
         static mut BUFFERS_OF_MAP: $buf = $buf {
-            evidence: [[1.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
-            labels: [$m::UNKNOWN; $m::NUM_PLACES],
+            evidence: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
+            labels: [0; $m::NUM_PLACES],
             marginals: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
-            mpe: [$m::UNKNOWN; $m::NUM_PLACES],
+            mpe: [0; $m::NUM_PLACES],
         };
 
         impl $ty {

@@ -140,7 +140,11 @@ impl core::fmt::Write for Uart {
 
 /// Ends QEMU with exit status `code` (0: success).
 fn exit(code: u32) -> ! {
-    let v = if code == 0 { 0x5555 } else { (code << 16) | 0x3333 };
+    let v = if code == 0 {
+        0x5555
+    } else {
+        (code << 16) | 0x3333
+    };
     // SAFETY: the test device's register.
     unsafe { core::ptr::write_volatile(TEST_DEVICE as *mut u32, v) };
     loop {

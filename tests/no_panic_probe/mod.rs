@@ -61,10 +61,10 @@ pub fn link_check(target: Option<&str>) {
             cmd.args(["--", "-C", "link-arg=-nostartfiles", "-C", "link-arg=-lc"]);
         }
         cmd.env(
-                "CARGO_TARGET_DIR",
-                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/no-panic-probe"),
-            )
-            .current_dir(dir.path());
+            "CARGO_TARGET_DIR",
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/no-panic-probe"),
+        )
+        .current_dir(dir.path());
         if let Some(cfg) = extra_cfg {
             cmd.args(["--cfg", cfg]);
         }
@@ -85,7 +85,6 @@ pub fn link_check(target: Option<&str>) {
         "the generated code keeps a path to a panic, or needs std/alloc:\n{stderr}"
     );
 }
-
 
 /// The symbol the probe's panic handler calls; defined nowhere.
 const UNDEFINED_ON_PANIC: &str = "graphspn_generated_code_reaches_a_panic";
