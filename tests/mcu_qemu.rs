@@ -484,8 +484,11 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     differ
 }
 
+/// One map's results: name, call values, marginals, MPE labels (all as bits).
+type MapResults = (String, Vec<Result<u32, String>>, Vec<Vec<u32>>, Vec<u16>);
+
 /// Everything but instruction counts and stack: what must agree bit for bit.
-fn results(r: &Report) -> Vec<(String, Vec<Result<u32, String>>, Vec<Vec<u32>>, Vec<u16>)> {
+fn results(r: &Report) -> Vec<MapResults> {
     r.maps
         .iter()
         .map(|m| {

@@ -34,14 +34,14 @@ impl SplitMix64 {
 pub fn fill(seed: u64, classes: usize, rows: &mut [f32], labels: &mut [u16], unknown: u16) {
     let mut rng = SplitMix64(seed);
     for row in rows.chunks_mut(classes) {
-        let no_evidence = rng.next_u64() % 8 == 0;
+        let no_evidence = rng.next_u64().is_multiple_of(8);
         for v in row.iter_mut() {
             *v = if no_evidence { 1.0 } else { rng.unit_f32() };
         }
     }
     for l in labels.iter_mut() {
         let r = rng.next_u64();
-        *l = if r % 3 == 0 {
+        *l = if r.is_multiple_of(3) {
             ((r >> 8) % classes as u64) as u16
         } else {
             unknown
