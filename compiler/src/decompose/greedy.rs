@@ -1,8 +1,8 @@
 //! The greedy random decomposition (Alg. 2) and the best-of-N scheme.
 
+use crate::par::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 
 use super::{Component, DecomposeError, Decomposition};
 use crate::map::TopoMap;
