@@ -477,10 +477,17 @@ pub fn module(
     } else {
         format!("{P}Lanes64")
     };
+    // The lane vector, for the block templates' functions (none: every template has
+    // per-node code).
+    let lane_items = if tpls.iter().any(|tp| tp.w == "V") {
+        format!("use {P}Lanes as _;\n/// The lane vector of block templates.\ntype V = {v_type};\n")
+    } else {
+        String::new()
+    };
     let _ = write!(
         s,
         r#"
-use {P}Lanes as _;
+{lane_items}
 /// Number of places of the map (the length of every evidence array).
 pub const NUM_PLACES: usize = {n};
 /// Number of classes per place.
@@ -522,8 +529,6 @@ pub type Marginals = [[{t}; NUM_CLASSES]; NUM_PLACES];
 /// One class index per place (`UNKNOWN` = not labelled).
 pub type Labels = [u16; NUM_PLACES];
 static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
-/// The lane vector of kernel templates.
-type V = {v_type};
 const NUM_ROWS: usize = {rows};
 {fns}
 {tables}
