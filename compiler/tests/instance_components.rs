@@ -236,6 +236,11 @@ fn cached_answers_after_updates_equal_a_fresh_evaluation() {
                 fast.set_evidence(p, &row).unwrap();
                 rows[p] = row;
             }
+            // Now and then all evidence at once, then updates before any query.
+            if step % 300 == 150 {
+                fast.set_all_evidence(&rows).unwrap();
+                continue;
+            }
             // Queries between updates read (and refresh) the cache.
             match step % 4 {
                 0 => {
@@ -388,6 +393,10 @@ fn growth_follows_the_explicit_instance_and_keeps_caches() {
             let grown = prefix(k);
             let a = fast.grow(&model, &grown, seed + k as u64).unwrap();
             let b = inst.grow(&model, &grown, seed + k as u64).unwrap();
+            // An update before any query after growing.
+            let row = random_rows(1, 3, &mut rng).remove(0);
+            fast.set_evidence(1, &row).unwrap();
+            rows[1] = row;
             assert_eq!(a, b, "same reuse as the explicit instance");
             assert!(a.reused > 0, "{a:?}");
             assert_eq!(fast.decompositions(), &inst.decompositions[..]);

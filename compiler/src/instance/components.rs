@@ -230,6 +230,29 @@ impl Plan {
     }
 }
 
+/// A template's results with no evidence (every `ln α` = 0): exactly what [`Plan::up`]
+/// and [`Plan::down`] give any component whose places are all unobserved.
+#[derive(Clone, Debug)]
+struct Blank {
+    ll: f64,
+    max: f64,
+    post: Vec<f64>,
+}
+
+impl Blank {
+    fn new(plan: &Plan, vars: usize, classes: usize) -> Blank {
+        let mut s = Scratch {
+            slots: vec![0.0; vars * classes],
+            ..Scratch::default()
+        };
+        let max = plan.up(&mut s, true);
+        let ll = plan.up(&mut s, false);
+        let mut post = vec![0.0; vars * classes];
+        plan.down(&mut s, classes, &mut post);
+        Blank { ll, max, post }
+    }
+}
+
 /// A binary tree of partial sums over `m ≥ 1` log-values: leaves at `m..2m`, node `i`
 /// holds `t[2i] + t[2i+1]`, the total at node 1 (node `m` when `m = 1`). Updating a
 /// leaf recomputes its `O(log m)` ancestors from their children, never by subtracting.
@@ -297,8 +320,16 @@ pub struct ComponentInstance {
     place_pos: Vec<u32>,
     /// `ln α` of every place, `p·C + c`.
     log_alpha: Vec<f64>,
-    /// Cached log-value of each component.
+    /// Whether place `p` has evidence other than all ones.
+    observed: Vec<bool>,
+    /// Per template, its value, max-product value and local posteriors with no
+    /// evidence (shared by every component whose places are all unobserved).
+    blank: Vec<Blank>,
+    /// Cached log-value of each component, valid where `ll_valid[i]`.
     comp_ll: Vec<f64>,
+    ll_valid: Vec<bool>,
+    /// The decomposition sums must be rebuilt from `comp_ll`.
+    trees_stale: bool,
     /// Cached local posteriors of each component (its places × classes, at
     /// `comp_start[i]·C`), valid where `post_valid[i]`.
     comp_post: Vec<f64>,
@@ -389,13 +420,23 @@ impl ComponentInstance {
             place_comp: Vec::new(),
             place_pos: Vec::new(),
             log_alpha: vec![0.0; map.num_places() * num_classes],
+            observed: vec![false; map.num_places()],
+            blank: Vec::new(),
             comp_ll: Vec::new(),
+            ll_valid: Vec::new(),
+            trees_stale: true,
             comp_post: Vec::new(),
             post_valid: Vec::new(),
             dec_tree: Vec::new(),
             scratch: Scratch::default(),
             last_stats: CopyStats::default(),
         };
+        inst.blank = inst
+            .plans
+            .iter()
+            .zip(&model.templates)
+            .map(|(plan, t)| Blank::new(plan, t.num_nodes, num_classes))
+            .collect();
         inst.index(decompositions, None);
         Ok(inst)
     }
@@ -443,6 +484,8 @@ impl ComponentInstance {
             + b(&self.place_pos)
             + b(&self.log_alpha)
             + b(&self.comp_ll)
+            + b(&self.observed)
+            + b(&self.ll_valid)
             + b(&self.comp_post)
             + b(&self.post_valid)
             + self.dec_tree.iter().map(|t| b(&t.t)).sum::<usize>()
@@ -509,6 +552,7 @@ impl ComponentInstance {
         self.place_comp = place_comp;
         self.place_pos = place_pos;
         self.comp_ll = vec![0.0; m];
+        self.ll_valid = vec![false; m];
         self.comp_post = vec![0.0; self.comp_places.len() * c];
         self.post_valid = vec![false; m];
         let mut fresh = vec![true; m];
@@ -521,6 +565,7 @@ impl ComponentInstance {
                     fresh[i] = false;
                     stats.reused += 1;
                     self.comp_ll[i] = old.comp_ll[j];
+                    self.ll_valid[i] = old.ll_valid[j];
                     if old.post_valid[j] {
                         let (a, b) = (self.comp_start[i] * c, self.comp_start[i + 1] * c);
                         let (oa, ob) = (old.comp_start[j] * c, old.comp_start[j + 1] * c);
@@ -533,7 +578,7 @@ impl ComponentInstance {
         stats.built = fresh.iter().filter(|&&f| f).count();
         self.decompositions = decompositions;
         self.last_stats = stats;
-        self.evaluate_values(&fresh);
+        self.trees_stale = true;
     }
 
     /// Places of distinct component `i`, in template variable order.
@@ -541,29 +586,39 @@ impl ComponentInstance {
         &self.comp_places[self.comp_start[i]..self.comp_start[i + 1]]
     }
 
-    /// Recomputes (in parallel) the log-value of every component with `which[i]`, marks
-    /// their posteriors stale, and rebuilds every decomposition's partial sums.
-    fn evaluate_values(&mut self, which: &[bool]) {
+    /// Computes (in parallel) the log-value of every component with a stale cache,
+    /// then rebuilds the decomposition sums if anything changed.
+    fn refresh_values(&mut self) {
         let c = self.num_classes;
-        let (plans, comp_template, comp_start, comp_places, log_alpha) = (
+        let (plans, comp_template, comp_start, comp_places, log_alpha, observed, blank) = (
             &self.plans,
             &self.comp_template,
             &self.comp_start,
             &self.comp_places,
             &self.log_alpha,
+            &self.observed,
+            &self.blank,
         );
         self.comp_ll
             .par_iter_mut()
-            .zip(self.post_valid.par_iter_mut())
+            .zip(self.ll_valid.par_iter_mut())
             .enumerate()
-            .filter(|(i, _)| which[*i])
+            .filter(|(_, (_, valid))| !**valid)
             .for_each_init(Scratch::default, |s, (i, (ll, valid))| {
                 let places = &comp_places[comp_start[i]..comp_start[i + 1]];
-                fill_slots(&mut s.slots, places, log_alpha, c, None);
-                *ll = plans[comp_template[i] as usize].up(s, false);
-                *valid = false;
+                let t = comp_template[i] as usize;
+                *ll = if places.iter().all(|&p| !observed[p as usize]) {
+                    blank[t].ll
+                } else {
+                    fill_slots(&mut s.slots, places, log_alpha, c, None);
+                    plans[t].up(s, false)
+                };
+                *valid = true;
             });
-        self.rebuild_trees();
+        if self.trees_stale {
+            self.rebuild_trees();
+            self.trees_stale = false;
+        }
     }
 
     fn rebuild_trees(&mut self) {
@@ -577,31 +632,40 @@ impl ComponentInstance {
     /// Computes the local posteriors of every component with a stale cache (in parallel).
     fn refresh_posteriors(&mut self) {
         let c = self.num_classes;
-        let (plans, comp_template, comp_start, comp_places, log_alpha) = (
+        let (plans, comp_template, comp_start, comp_places, log_alpha, observed, blank) = (
             &self.plans,
             &self.comp_template,
             &self.comp_start,
             &self.comp_places,
             &self.log_alpha,
+            &self.observed,
+            &self.blank,
         );
-        let mut slices: Vec<(usize, &mut [f64])> = Vec::new();
+        let mut slices: Vec<(usize, &mut [f64], &mut f64, &mut bool)> = Vec::new();
         let mut rest = &mut self.comp_post[..];
-        for i in 0..comp_template.len() {
+        for (i, (ll, valid)) in self.comp_ll.iter_mut().zip(&mut self.ll_valid).enumerate() {
             let len = (comp_start[i + 1] - comp_start[i]) * c;
             let (a, b) = rest.split_at_mut(len);
             rest = b;
             if !self.post_valid[i] {
-                slices.push((i, a));
+                slices.push((i, a, ll, valid));
             }
         }
         slices
             .into_par_iter()
-            .for_each_init(Scratch::default, |s, (i, out)| {
+            .for_each_init(Scratch::default, |s, (i, out, ll, valid)| {
                 let places = &comp_places[comp_start[i]..comp_start[i + 1]];
-                fill_slots(&mut s.slots, places, log_alpha, c, None);
-                let plan = &plans[comp_template[i] as usize];
-                plan.up(s, false);
-                plan.down(s, c, out);
+                let t = comp_template[i] as usize;
+                if places.iter().all(|&p| !observed[p as usize]) {
+                    *ll = blank[t].ll;
+                    out.copy_from_slice(&blank[t].post);
+                } else {
+                    fill_slots(&mut s.slots, places, log_alpha, c, None);
+                    let plan = &plans[t];
+                    *ll = plan.up(s, false);
+                    plan.down(s, c, out);
+                }
+                *valid = true;
             });
         self.post_valid.iter_mut().for_each(|v| *v = true);
     }
@@ -613,7 +677,12 @@ impl ComponentInstance {
         fill_slots(&mut self.scratch.slots, places, &self.log_alpha, c, None);
         let ll = self.plans[self.comp_template[i] as usize].up(&mut self.scratch, false);
         self.comp_ll[i] = ll;
+        self.ll_valid[i] = true;
         self.post_valid[i] = false;
+        if self.trees_stale {
+            // Rebuilt from every cached value at the next query.
+            return;
+        }
         for u in self.uses_start[i]..self.uses_start[i + 1] {
             let (d, k) = self.uses[u as usize];
             self.dec_tree[d as usize].set(k as usize, ll);
@@ -695,9 +764,12 @@ impl ComponentInstance {
             for (k, &a) in row.iter().enumerate() {
                 self.log_alpha[p * c + k] = a.ln();
             }
+            self.observed[p] = row.iter().any(|&a| a != 1.0);
         }
-        let all = vec![true; self.num_components()];
-        self.evaluate_values(&all);
+        // Evaluated lazily by the next query (values only, or with posteriors).
+        self.ll_valid.iter_mut().for_each(|v| *v = false);
+        self.post_valid.iter_mut().for_each(|v| *v = false);
+        self.trees_stale = true;
         Ok(())
     }
 
@@ -711,6 +783,7 @@ impl ComponentInstance {
         for (k, &a) in row.iter().enumerate() {
             self.log_alpha[place * c + k] = a.ln();
         }
+        self.observed[place] = row.iter().any(|&a| a != 1.0);
         for i in self.components_of(place) {
             self.reevaluate(i);
         }
@@ -726,7 +799,8 @@ impl ComponentInstance {
     }
 
     /// Decomposition log-values and `ln Σ_d exp(·)`; errors when every one is `-∞`.
-    fn mix(&self) -> Result<(Vec<f64>, f64), InstanceQueryError> {
+    fn mix(&mut self) -> Result<(Vec<f64>, f64), InstanceQueryError> {
+        self.refresh_values();
         let vals: Vec<f64> = self.dec_tree.iter().map(SumTree::total).collect();
         let lse = log_sum_exp(&vals);
         if lse == NEG_INF {
@@ -739,13 +813,13 @@ impl ComponentInstance {
 
     /// `ln P(evidence)` from the cache, `O(D)`: `ln(1/D) + ln Σ_d exp(ln v_d)`.
     /// Errors with [`EvidenceError::ZeroLikelihood`] when the evidence has probability 0.
-    pub fn log_likelihood(&self) -> Result<f64, InstanceQueryError> {
+    pub fn log_likelihood(&mut self) -> Result<f64, InstanceQueryError> {
         let (_, lse) = self.mix()?;
         Ok(lse - (self.dec_comps.len() as f64).ln())
     }
 
     /// Posterior weight of each decomposition, `P(d | evidence)`.
-    fn dec_weights(&self) -> Result<Vec<f64>, InstanceQueryError> {
+    fn dec_weights(&mut self) -> Result<Vec<f64>, InstanceQueryError> {
         let (vals, lse) = self.mix()?;
         Ok(vals.iter().map(|&v| (v - lse).exp()).collect())
     }
@@ -755,8 +829,8 @@ impl ComponentInstance {
     /// [`ComponentInstance::set_all_evidence`], ≤ D after one update), then mixed by
     /// decomposition posterior, `O(places × D × classes)`. Rows are renormalised.
     pub fn marginals(&mut self) -> Result<Marginals, InstanceQueryError> {
-        let w = self.dec_weights()?;
         self.refresh_posteriors();
+        let w = self.dec_weights()?;
         let n = self.num_places;
         let probs = (0..n).map(|p| self.mixed_row(p, &w)).collect();
         Ok(Marginals {
@@ -837,14 +911,20 @@ impl ComponentInstance {
         (0..self.num_components())
             .into_par_iter()
             .map_init(Scratch::default, |s, i| {
-                fill_slots(
-                    &mut s.slots,
-                    self.places_of(i),
-                    &self.log_alpha,
-                    c,
-                    Some(fixed),
-                );
-                self.plans[self.comp_template[i] as usize].up(s, max)
+                let places = self.places_of(i);
+                let t = self.comp_template[i] as usize;
+                if places
+                    .iter()
+                    .all(|&p| !self.observed[p as usize] && fixed[p as usize].is_none())
+                {
+                    return if max {
+                        self.blank[t].max
+                    } else {
+                        self.blank[t].ll
+                    };
+                }
+                fill_slots(&mut s.slots, places, &self.log_alpha, c, Some(fixed));
+                self.plans[t].up(s, max)
             })
             .collect()
     }
@@ -876,7 +956,7 @@ impl ComponentInstance {
     /// are summed out; an empty slice = none labelled, answered from the cache in `O(D)`).
     /// With labels: one full clamped pass, `O(places × D × template size)`, not cached.
     pub fn log_likelihood_labelled(
-        &self,
+        &mut self,
         labels: &[Option<ClassId>],
     ) -> Result<f64, InstanceQueryError> {
         let fixed = self.fixed(labels)?;
@@ -996,10 +1076,12 @@ impl ComponentInstance {
             ids,
             comp_start: std::mem::take(&mut self.comp_start),
             comp_ll: std::mem::take(&mut self.comp_ll),
+            ll_valid: std::mem::take(&mut self.ll_valid),
             comp_post: std::mem::take(&mut self.comp_post),
             post_valid: std::mem::take(&mut self.post_valid),
         };
         self.log_alpha.resize(n * c, 0.0);
+        self.observed.resize(n, false);
         self.place_ids = map.places().map(|p| u64::from(p.id)).collect();
         self.num_places = n;
         self.edges = edge_set(map);
@@ -1013,6 +1095,7 @@ struct OldCache {
     ids: HashMap<(u32, Vec<u32>), u32>,
     comp_start: Vec<usize>,
     comp_ll: Vec<f64>,
+    ll_valid: Vec<bool>,
     comp_post: Vec<f64>,
     post_valid: Vec<bool>,
 }
