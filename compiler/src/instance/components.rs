@@ -28,7 +28,7 @@
 //! the same evidence gives. Costs after one update:
 //!
 //! - the update itself: ≤ D template upward passes (`O(D × template edges)`);
-//! - [`ComponentInstance::log_likelihood`]: `O(D)`;
+//! - [`ComponentInstance::log_likelihood`] from the cache: `O(D)`;
 //! - [`ComponentInstance::marginal`] of one place: ≤ D template downward passes, `O(D × classes)` mix;
 //! - [`ComponentInstance::marginals`] of every place: ≤ D downward passes plus the
 //!   `O(places × D × classes)` mix;
@@ -555,14 +555,12 @@ impl ComponentInstance {
         self.ll_valid = vec![false; m];
         self.comp_post = vec![0.0; self.comp_places.len() * c];
         self.post_valid = vec![false; m];
-        let mut fresh = vec![true; m];
         let mut stats = CopyStats::default();
         if let Some(old) = old {
             for i in 0..m {
                 let key = (self.comp_template[i], self.places_of(i).to_vec());
                 if let Some(&j) = old.ids.get(&key) {
                     let j = j as usize;
-                    fresh[i] = false;
                     stats.reused += 1;
                     self.comp_ll[i] = old.comp_ll[j];
                     self.ll_valid[i] = old.ll_valid[j];
@@ -575,7 +573,7 @@ impl ComponentInstance {
                 }
             }
         }
-        stats.built = fresh.iter().filter(|&&f| f).count();
+        stats.built = m - stats.reused;
         self.decompositions = decompositions;
         self.last_stats = stats;
         self.trees_stale = true;
