@@ -60,8 +60,33 @@ pub fn load_map(path: &Path, data: Option<PathBuf>) -> Result<TopoMap> {
     }
 }
 
-/// Loads a model and builds the instance GraphSPN of `map` with `decompositions`
-/// decompositions (best of 3×, at least 15 candidates) seeded by `seed`.
+/// Largest memory (bytes) a host command may plan to use before it refuses with an
+/// estimate: 4 GiB.
+pub const MEMORY_LIMIT: u128 = 4 << 30;
+
+fn gb(bytes: u128) -> String {
+    format!("{:.1} GB", bytes as f64 / 1e9)
+}
+
+fn load_model(model_path: &Path) -> Result<graphspn_compiler::learn::Model> {
+    graphspn_compiler::learn::Model::load(model_path)
+        .with_context(|| format!("loading model {}", model_path.display()))
+}
+
+fn instance_params(
+    decompositions: usize,
+    seed: u64,
+) -> graphspn_compiler::instance::InstanceParams {
+    graphspn_compiler::instance::InstanceParams {
+        decompositions,
+        candidates: decompositions.saturating_mul(3).max(15),
+        seed,
+    }
+}
+
+/// Loads a model and builds the explicit instance GraphSPN of `map` with
+/// `decompositions` decompositions (best of 3×, at least 15 candidates) seeded by
+/// `seed`. Refuses, before building, an instance estimated above [`MEMORY_LIMIT`].
 pub fn instance_for(
     model_path: &Path,
     map: &TopoMap,
@@ -71,17 +96,77 @@ pub fn instance_for(
     graphspn_compiler::learn::Model,
     graphspn_compiler::instance::Instance,
 )> {
-    use graphspn_compiler::instance::{Instance, InstanceParams};
-    let model = graphspn_compiler::learn::Model::load(model_path)
-        .with_context(|| format!("loading model {}", model_path.display()))?;
-    let params = InstanceParams {
-        decompositions,
-        candidates: (3 * decompositions).max(15),
+    use graphspn_compiler::decompose::{DecompositionParams, decompose_best};
+    use graphspn_compiler::instance::{Instance, estimated_explicit_bytes};
+    let model = load_model(model_path)?;
+    check_component_memory(&model, map, decompositions)?;
+    let params = instance_params(decompositions, seed);
+    let dp = DecompositionParams {
+        count: params.decompositions,
+        candidates: params.candidates,
         seed,
     };
-    let inst = Instance::for_map(&model, map, &params)
+    let decs = decompose_best(map, &model.templates, &dp)
+        .with_context(|| format!("building the instance of map {:?}", map.name))?;
+    // The SPN and its text (about as large again).
+    let estimate = 2 * estimated_explicit_bytes(&model, &decs);
+    if estimate > MEMORY_LIMIT {
+        bail!(
+            "the explicit instance SPN of map {:?} ({} places, --decompositions {decompositions}) would take about {} (limit {}): lower --decompositions or use a smaller map (`graphspn infer` answers queries without the explicit SPN)",
+            map.name,
+            map.num_places(),
+            gb(estimate),
+            gb(MEMORY_LIMIT)
+        );
+    }
+    let inst = Instance::build(&model, map, decs)
         .with_context(|| format!("building the instance of map {:?}", map.name))?;
     Ok((model, inst))
+}
+
+/// Refuses `--decompositions` values whose component evaluator (and decomposition
+/// step) is estimated above [`MEMORY_LIMIT`].
+fn check_component_memory(
+    model: &graphspn_compiler::learn::Model,
+    map: &TopoMap,
+    decompositions: usize,
+) -> Result<()> {
+    let p = instance_params(decompositions, 0);
+    let estimate = graphspn_compiler::instance::estimated_component_bytes(
+        map.num_places(),
+        model.classes.len(),
+        p.decompositions,
+        p.candidates,
+    );
+    if estimate > MEMORY_LIMIT {
+        bail!(
+            "--decompositions {decompositions} on map {:?} ({} places) would take about {} (limit {}): lower --decompositions",
+            map.name,
+            map.num_places(),
+            gb(estimate),
+            gb(MEMORY_LIMIT)
+        );
+    }
+    Ok(())
+}
+
+/// Loads a model and prepares the component-wise evaluator of `map`'s instance (same
+/// decompositions as [`instance_for`], no explicit SPN: memory linear in places).
+/// Refuses `--decompositions` estimated above [`MEMORY_LIMIT`] before decomposing.
+pub fn component_instance_for(
+    model_path: &Path,
+    map: &TopoMap,
+    decompositions: usize,
+    seed: u64,
+) -> Result<graphspn_compiler::instance::ComponentInstance> {
+    let model = load_model(model_path)?;
+    check_component_memory(&model, map, decompositions)?;
+    graphspn_compiler::instance::ComponentInstance::for_map(
+        &model,
+        map,
+        &instance_params(decompositions, seed),
+    )
+    .with_context(|| format!("building the instance of map {:?}", map.name))
 }
 
 /// Writes `text` to standard output; a closed pipe (e.g. `| head`) is not an error.

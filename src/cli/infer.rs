@@ -11,14 +11,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use graphspn_compiler::instance::InstanceModel;
-use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::map::TopoMap;
 use graphspn_compiler::render::{RenderOptions, render_svg};
 use serde::Deserialize;
 use serde_json::json;
 
-use super::common::{data_dir, instance_for, load_map};
+use super::common::{component_instance_for, data_dir, load_map};
 
 /// Version of the evidence file format.
 pub const EVIDENCE_FORMAT: u32 = 1;
@@ -133,10 +131,9 @@ pub fn run(args: InferArgs) -> Result<()> {
         }
         None => vec![vec![1.0; map.classes.len()]; map.num_places()],
     };
-    let (_, inst) = instance_for(&args.model, &map, args.decompositions, args.seed)?;
-    let mut im = InstanceModel::new(inst).context("compiling the instance")?;
-    let ev = Evidence::from_rows(rows);
-    let m = im.marginals(&ev).context("computing marginals")?;
+    let mut im = component_instance_for(&args.model, &map, args.decompositions, args.seed)?;
+    im.set_all_evidence(&rows).context("setting the evidence")?;
+    let m = im.marginals().context("computing marginals")?;
     let names = map.classes.names();
     let argmax = |row: &[f64]| {
         let mut best = 0;
@@ -162,7 +159,7 @@ pub fn run(args: InferArgs) -> Result<()> {
         "places": places,
     });
     if args.mpe {
-        let mpe = im.mpe(&[], &ev).context("computing the MPE labelling")?;
+        let mpe = im.mpe(&[]).context("computing the MPE labelling")?;
         let labels: BTreeMap<String, &str> = map
             .places()
             .zip(&mpe.assignment)
