@@ -1,3 +1,4 @@
+#![allow(dead_code)]
 //! The no-panic link check shared by `generated_no_std.rs` (host) and
 //! `mcu_qemu.rs` (Cortex-M4F): see [`link_check`].
 
