@@ -15,7 +15,7 @@ pub mod structure;
 pub mod symmetry;
 pub mod train;
 
-pub use file::ModelFileError;
+pub use file::{ModelFileError, TemplateSpnError, check_template_spn, normalise_weights};
 pub use from_maps::{TemplateTraining, TrainModelError, template_samples, train_model};
 pub use model::Model;
 pub use settings::{EmKind, Symmetry, TrainingSettings};
