@@ -82,19 +82,27 @@ pub fn resolve_map(path: &Path, data: PathBuf) -> Result<PathBuf> {
     )
 }
 
-/// A map: a COLD sequence folder (nodes.dat + rooms.dat), a JSON map file, or a
-/// sequence name such as `Freiburg/seq1_cloudy1` under the data folder. Declares it
-/// an input of `outputs`. Warns on standard error when a COLD map loses places to
-/// disconnection (the loader keeps the largest connected component).
-pub fn load_map(path: &Path, data: PathBuf, outputs: &mut Outputs) -> Result<LoadedMap> {
+/// Resolves `--map` ([`resolve_map`]) and declares it (and, for a COLD folder, its
+/// two files) an input of `outputs`. Read it with [`read_map`] once every output is
+/// declared.
+pub fn declare_map(path: &Path, data: PathBuf, outputs: &mut Outputs) -> Result<PathBuf> {
     let resolved = resolve_map(path, data)?;
     outputs.input("--map", &resolved);
-    let (map, dropped) = if resolved.is_dir() {
+    if resolved.is_dir() {
         outputs.input("--map", &resolved.join("nodes.dat"));
         outputs.input("--map", &resolved.join("rooms.dat"));
-        cold::load_sequence_report(&resolved)?
+    }
+    Ok(resolved)
+}
+
+/// A map: a COLD sequence folder (nodes.dat + rooms.dat) or a JSON map file (a path
+/// from [`declare_map`]). Warns on standard error when a COLD map loses places to
+/// disconnection (the loader keeps the largest connected component).
+pub fn read_map(resolved: &Path) -> Result<LoadedMap> {
+    let (map, dropped) = if resolved.is_dir() {
+        cold::load_sequence_report(resolved)?
     } else {
-        (TopoMap::load(&resolved)?, Dropped::default())
+        (TopoMap::load(resolved)?, Dropped::default())
     };
     if !dropped.disconnected.is_empty() {
         let total = map.num_places() + dropped.disconnected.len();
@@ -118,8 +126,7 @@ pub fn id_list(ids: &[u32]) -> String {
 }
 
 /// Reads a model (validated by [`Model::load`]; errors name the file, template and node).
-pub fn load_model(path: &Path, outputs: &mut Outputs) -> Result<Model> {
-    outputs.input("--model", path);
+pub fn load_model(path: &Path) -> Result<Model> {
     if !path.is_file() {
         bail!("--model {}: no such file", path.display());
     }
@@ -152,11 +159,13 @@ pub fn decompositions_for(
     seed: u64,
 ) -> Result<Vec<Decomposition>> {
     match file {
-        Some(f) => Ok(graphspn_compiler::decompose::file::load(
-            f,
-            map,
-            &model.templates,
-        )?),
+        Some(f) => {
+            let decs = graphspn_compiler::decompose::file::load(f, map, &model.templates)?;
+            if decs.is_empty() {
+                bail!("{}: holds no decompositions", f.display());
+            }
+            Ok(decs)
+        }
         None => {
             let dp = graphspn_compiler::decompose::DecompositionParams {
                 count,

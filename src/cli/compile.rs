@@ -6,7 +6,9 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::codegen::{Builder, Precision, check_module_name, is_generated_file};
 
-use super::common::check_decomposition_count;
+use super::common::{
+    check_decomposition_count, declare_map, decompositions_for, load_model, read_map,
+};
 use super::output::{Outputs, write_files};
 
 /// Arguments of `graphspn compile`.
@@ -70,11 +72,13 @@ pub fn run(args: CompileArgs) -> Result<()> {
     check_decomposition_count("--count", args.count)?;
     let mut outputs = Outputs::new(args.force);
     outputs.input("--model", &args.model);
-    outputs.input("--map", &args.map);
-    if args.map.is_dir() {
-        outputs.input("--map", &args.map.join("nodes.dat"));
-        outputs.input("--map", &args.map.join("rooms.dat"));
+    if !args.map.exists() {
+        bail!(
+            "--map {}: no such map (give a JSON map or a COLD sequence folder)",
+            args.map.display()
+        );
     }
+    let map_path = declare_map(&args.map, args.map.clone(), &mut outputs)?;
     if let Some(d) = &args.decompositions {
         outputs.input("--decompositions", d);
     }
@@ -88,6 +92,14 @@ pub fn run(args: CompileArgs) -> Result<()> {
         );
     }
     outputs.file_replacing("--out", &args.out, generated)?;
+    // The inputs are read and checked here, as by every other command (errors name the
+    // flag, file, line, template and node), before the builder reads them again.
+    let model = load_model(&args.model)?;
+    let map = read_map(&map_path)?.map;
+    let decompositions = match &args.decompositions {
+        Some(f) => Some(decompositions_for(&model, &map, Some(f), 1, 0)?),
+        None => None,
+    };
     let mut b = Builder::new(&args.model, &args.map)
         .module_name(&args.module)
         .out_file(&args.out)
@@ -99,8 +111,8 @@ pub fn run(args: CompileArgs) -> Result<()> {
         } else {
             Precision::F32
         });
-    b = match &args.decompositions {
-        Some(f) => b.decompositions_file(f),
+    b = match decompositions {
+        Some(d) => b.decompositions(d),
         None => b.seed(args.seed).count(args.count),
     };
     let inputs = b.load()?;

@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::Args;
 
 use super::common::{
-    check_decomposition_count, data_dir, decompositions_for, load_map, load_model,
+    check_decomposition_count, data_dir, declare_map, decompositions_for, load_model, read_map,
 };
 use super::output::{Outputs, write_files};
 
@@ -47,9 +47,11 @@ pub struct DecomposeArgs {
 pub fn run(args: DecomposeArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.force);
     check_decomposition_count("--count", args.count)?;
-    let model = load_model(&args.model, &mut outputs)?;
-    let loaded = load_map(&args.map, data_dir(args.data), &mut outputs)?;
+    outputs.input("--model", &args.model);
+    let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     outputs.file("--out", &args.out)?;
+    let model = load_model(&args.model)?;
+    let loaded = read_map(&map_path)?;
     let decs = decompositions_for(&model, &loaded.map, None, args.count, args.seed)?;
     let text = graphspn_compiler::decompose::file::to_json(&decs, &loaded.map, &model.templates)?;
     write_files(&[(&args.out, text.as_bytes())])?;

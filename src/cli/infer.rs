@@ -22,7 +22,8 @@ use serde::de::{MapAccess, Visitor};
 use serde_json::json;
 
 use super::common::{
-    check_decomposition_count, data_dir, decompositions_for, instance_of, load_map, load_model,
+    check_decomposition_count, data_dir, declare_map, decompositions_for, instance_of, load_model,
+    read_map,
 };
 use super::output::{Outputs, write_files};
 
@@ -205,18 +206,11 @@ pub fn run(args: InferArgs) -> Result<()> {
     // Every argument and input is checked before any work or write.
     let mut outputs = Outputs::new(args.force);
     check_decomposition_count("--decompositions", args.decompositions)?;
-    let model = load_model(&args.model, &mut outputs)?;
-    let loaded = load_map(&args.map, data_dir(args.data), &mut outputs)?;
-    let map = &loaded.map;
-    let rows = match &args.evidence {
-        Some(p) => {
-            outputs.input("--evidence", p);
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("--evidence {}", p.display()))?;
-            parse_evidence(&text, p, map, &loaded.dropped)?
-        }
-        None => vec![vec![1.0; map.classes.len()]; map.num_places()],
-    };
+    outputs.input("--model", &args.model);
+    let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
+    if let Some(p) = &args.evidence {
+        outputs.input("--evidence", p);
+    }
     if let Some(f) = &args.decompositions_file {
         outputs.input("--decompositions-file", f);
     }
@@ -226,6 +220,17 @@ pub fn run(args: InferArgs) -> Result<()> {
     if let Some(p) = &args.svg {
         outputs.file("--svg", p)?;
     }
+    let model = load_model(&args.model)?;
+    let loaded = read_map(&map_path)?;
+    let map = &loaded.map;
+    let rows = match &args.evidence {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("--evidence {}", p.display()))?;
+            parse_evidence(&text, p, map, &loaded.dropped)?
+        }
+        None => vec![vec![1.0; map.classes.len()]; map.num_places()],
+    };
     let decs = decompositions_for(
         &model,
         map,

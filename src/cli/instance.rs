@@ -6,7 +6,8 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 
 use super::common::{
-    check_decomposition_count, data_dir, decompositions_for, instance_of, load_map, load_model,
+    check_decomposition_count, data_dir, declare_map, decompositions_for, instance_of, load_model,
+    read_map,
 };
 use super::output::{Outputs, emit};
 
@@ -61,15 +62,17 @@ pub struct InstanceArgs {
 pub fn run(args: InstanceArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.force);
     check_decomposition_count("--decompositions", args.decompositions)?;
-    let model = load_model(&args.model, &mut outputs)?;
-    let loaded = load_map(&args.map, data_dir(args.data), &mut outputs)?;
-    let map = &loaded.map;
+    outputs.input("--model", &args.model);
+    let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     if let Some(f) = &args.decompositions_file {
         outputs.input("--decompositions-file", f);
     }
     if let Some(p) = &args.out {
         outputs.file("--out", p)?;
     }
+    let model = load_model(&args.model)?;
+    let loaded = read_map(&map_path)?;
+    let map = &loaded.map;
     let decs = decompositions_for(
         &model,
         map,

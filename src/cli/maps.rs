@@ -10,7 +10,7 @@ use graphspn_compiler::map::stats::{MapStats, comparison_table};
 use graphspn_compiler::map::synthetic::{SyntheticParams, generate};
 use graphspn_compiler::render::{RenderOptions, render_svg};
 
-use super::common::{data_dir, load_map, require_data_dir, write_stdout};
+use super::common::{data_dir, declare_map, read_map, require_data_dir, write_stdout};
 use super::output::{Outputs, write_files};
 
 /// Smallest and largest synthetic floor (places).
@@ -112,12 +112,16 @@ pub struct RenderArgs {
 /// Runs `graphspn render`.
 pub fn render(args: RenderArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.force);
-    let m = match (&args.map, args.synthetic) {
-        (Some(p), _) => load_map(p, data_dir(args.data), &mut outputs)?.map,
+    let map_path = match &args.map {
+        Some(p) => Some(declare_map(p, data_dir(args.data), &mut outputs)?),
+        None => None,
+    };
+    outputs.file("--out", &args.out)?;
+    let m = match (&map_path, args.synthetic) {
+        (Some(p), _) => read_map(p)?.map,
         (None, Some(n)) => synthetic("--synthetic", n, args.seed)?,
         (None, None) => bail!("give --map PATH or --synthetic N"),
     };
-    outputs.file("--out", &args.out)?;
     let opts = RenderOptions {
         title: Some(args.title.unwrap_or_else(|| {
             format!(
