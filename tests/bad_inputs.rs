@@ -1846,6 +1846,9 @@ fn every_bad_input_is_refused_clearly_without_panic_or_side_effect() {
                 problems.push(format!("message lacks {e:?}"));
             }
         }
+        if err.contains("Caused by") {
+            problems.push("error chain printed twice".to_string());
+        }
         if c.code == 1 && err.lines().filter(|l| l.starts_with("error:")).count() != 1 {
             problems.push("not exactly one error line".to_string());
         }
@@ -1881,4 +1884,344 @@ fn every_bad_input_is_refused_clearly_without_panic_or_side_effect() {
         failures.join("\n")
     );
     eprintln!("{} bad inputs refused cleanly", cases.len());
+}
+
+/// Runs a command that must succeed; returns (stdout, stderr).
+fn ok(cmd: &mut Command) -> (String, String) {
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "failed: {err}");
+    (String::from_utf8(out.stdout).unwrap(), err)
+}
+
+fn infer_json(model: &Path, map: &Path, evidence: Option<&Path>) -> Value {
+    let mut c = bin();
+    c.args(["infer", "--model"])
+        .arg(model)
+        .arg("--map")
+        .arg(map);
+    if let Some(e) = evidence {
+        c.arg("--evidence").arg(e);
+    }
+    serde_json::from_str(&ok(&mut c).0).unwrap()
+}
+
+fn probs(v: &Value, place: usize) -> Vec<f64> {
+    v["places"][place]["probs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn coordinates_near_the_float_limit_give_a_finite_drawing() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = dir.path().join("far.json");
+    let classes = [
+        "DW", "CR", "1PO", "2PO", "LO", "LAB", "BA", "KT", "MR", "UT",
+    ];
+    write_json(
+        &map,
+        &json!({"format": 1, "name": "far", "classes": classes, "places": [
+            {"id": 0, "class": "CR", "placeholder": false, "x": 1e308, "y": 1e308},
+            {"id": 1, "class": "DW", "placeholder": false, "x": -1e308, "y": -1e308},
+            {"id": 2, "class": "KT", "placeholder": true, "x": 0.0, "y": 0.0}
+        ], "edges": [[0, 2], [1, 2]]}),
+    );
+    let svg = dir.path().join("far.svg");
+    ok(bin()
+        .arg("render")
+        .arg("--map")
+        .arg(&map)
+        .arg("--out")
+        .arg(&svg));
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(!text.contains("inf") && !text.contains("NaN"), "{text}");
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let root = doc.root_element();
+    for attr in ["width", "height"] {
+        let v: f64 = root.attribute(attr).unwrap().parse().unwrap();
+        assert!(v.is_finite() && v > 0.0 && v < 2.1e6, "{attr} = {v}");
+    }
+    // The three places are drawn at distinct finite positions, place 2 in the middle.
+    let xs: Vec<f64> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("circle") && n.attribute("cx").is_some())
+        .map(|n| n.attribute("cx").unwrap().parse::<f64>().unwrap())
+        .collect();
+    assert!(xs.iter().all(|x| x.is_finite()), "{xs:?}");
+    // infer on the same map works too (coordinates only matter for drawing).
+    let v = infer_json(&repo("generated/demo/model.json"), &map, None);
+    assert_eq!(v["places"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn a_one_place_map_gets_the_singleton_distribution() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = dir.path().join("one.json");
+    let classes = [
+        "DW", "CR", "1PO", "2PO", "LO", "LAB", "BA", "KT", "MR", "UT",
+    ];
+    write_json(
+        &map,
+        &json!({"format": 1, "name": "one", "classes": classes, "places": [
+            {"id": 5, "class": "CR", "placeholder": false, "x": 0.0, "y": 0.0}
+        ], "edges": []}),
+    );
+    let model = demo_model();
+    let singleton: Vec<f64> = model["spns"][3]["nodes"][10]["weights"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let v = infer_json(&repo("generated/demo/model.json"), &map, None);
+    assert_eq!(v["places"][0]["id"], 5);
+    let p = probs(&v, 0);
+    let total: f64 = singleton.iter().sum();
+    for (a, b) in p.iter().zip(&singleton) {
+        assert!((a - b / total).abs() < 1e-12, "{p:?} vs {singleton:?}");
+    }
+    assert!(v["log_likelihood"].as_f64().unwrap().abs() < 1e-12);
+    // Every other command accepts it too.
+    let d = dir.path();
+    ok(bin()
+        .arg("render")
+        .arg("--map")
+        .arg(&map)
+        .arg("--out")
+        .arg(d.join("one.svg")));
+    ok(bin()
+        .args(["instance", "--model"])
+        .arg(repo("generated/demo/model.json"))
+        .arg("--map")
+        .arg(&map)
+        .arg("--out")
+        .arg(d.join("one.instance.json")));
+    ok(bin()
+        .args(["decompose", "--model"])
+        .arg(repo("generated/demo/model.json"))
+        .arg("--map")
+        .arg(&map)
+        .arg("--out")
+        .arg(d.join("one.dec.json")));
+    ok(bin()
+        .args(["compile", "--model"])
+        .arg(repo("generated/demo/model.json"))
+        .arg("--map")
+        .arg(&map)
+        .arg("--decompositions")
+        .arg(d.join("one.dec.json"))
+        .arg("--out")
+        .arg(d.join("one.rs")));
+    assert!(
+        std::fs::read_to_string(d.join("one.rs"))
+            .unwrap()
+            .contains("NUM_PLACES: usize = 1;")
+    );
+}
+
+#[test]
+fn evidence_rows_of_1e_300_give_the_same_marginals() {
+    let dir = tempfile::tempdir().unwrap();
+    let row = [0.05, 0.6, 0.1, 0.05, 0.05, 0.05, 0.02, 0.03, 0.03, 0.02];
+    let tiny: Vec<f64> = row.iter().map(|x| x * 1e-300).collect();
+    let write = |name: &str, r: &[f64]| {
+        let p = dir.path().join(name);
+        write_json(&p, &json!({"format": 1, "evidence": {"3": r, "40": r}}));
+        p
+    };
+    let plain = write("plain.json", &row);
+    let small = write("small.json", &tiny);
+    let m = repo("generated/demo/model.json");
+    let f = repo("generated/demo/floor.json");
+    let a = infer_json(&m, &f, Some(&plain));
+    let b = infer_json(&m, &f, Some(&small));
+    for i in 0..80 {
+        for (x, y) in probs(&a, i).iter().zip(probs(&b, i)) {
+            assert!((x - y).abs() < 1e-9, "place {i}: {x} vs {y}");
+        }
+    }
+    // Two rows scaled by 1e-300 each: ln P drops by 2 · 300 · ln 10.
+    let (la, lb) = (
+        a["log_likelihood"].as_f64().unwrap(),
+        b["log_likelihood"].as_f64().unwrap(),
+    );
+    let want = la - 600.0 * std::f64::consts::LN_10;
+    assert!((lb - want).abs() < 1e-6 * want.abs(), "{lb} vs {want}");
+}
+
+#[test]
+fn template_weights_are_relative_on_every_path() {
+    // The singleton's weights times 20 (not summing to 1) mean the same model: infer,
+    // instance and compile all give exactly what the original model gives.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut m = demo_model();
+    let w: Vec<f64> = m["spns"][3]["nodes"][10]["weights"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap() * 20.0)
+        .collect();
+    m["spns"][3]["nodes"][10]["weights"] = json!(w);
+    let scaled = d.join("scaled.json");
+    write_json(&scaled, &m);
+    let orig = repo("generated/demo/model.json");
+    let f = repo("generated/demo/floor.json");
+    assert_eq!(infer_json(&orig, &f, None), infer_json(&scaled, &f, None));
+    let instance = |model: &Path| {
+        ok(bin()
+            .args(["instance", "--model"])
+            .arg(model)
+            .arg("--map")
+            .arg(&f))
+        .0
+    };
+    assert_eq!(instance(&orig), instance(&scaled));
+    let compile = |model: &Path, out: &str| {
+        ok(bin()
+            .args(["compile", "--model"])
+            .arg(model)
+            .arg("--map")
+            .arg(&f)
+            .arg("--out")
+            .arg(d.join(out)));
+        // The first line names the model file; the code must be identical.
+        let text = std::fs::read_to_string(d.join(out)).unwrap();
+        text.split_once('\n').unwrap().1.to_string()
+    };
+    assert_eq!(compile(&orig, "a.rs"), compile(&scaled, "b.rs"));
+}
+
+/// One `nodes.dat` line: id, not a placeholder, pose (x, 0), label, neighbours.
+fn cold_line(id: u32, x: f64, label: &str, nbs: &[u32]) -> String {
+    let mut cols = vec![
+        id.to_string(),
+        "0".into(),
+        x.to_string(),
+        "0".into(),
+        "0".into(),
+        "0".into(),
+        x.to_string(),
+        "0".into(),
+        label.into(),
+        "1.0".into(),
+    ];
+    for t in 0..8 {
+        match nbs.get(t) {
+            Some(n) => cols.extend([n.to_string(), "0.5".into(), "0".into()]),
+            None => cols.extend(["-1".into(), "-1.0".into(), "0".into()]),
+        }
+    }
+    cols.join(" ")
+}
+
+#[test]
+fn a_disconnected_cold_map_warns_and_explains_its_dropped_places() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("Lab/seq1");
+    std::fs::create_dir_all(&seq).unwrap();
+    // Places 0-1-2 and 3-4: two components; 3 and 4 are dropped.
+    let nodes = [
+        cold_line(0, 0.0, "CR", &[1]),
+        cold_line(1, 1.0, "CR", &[0, 2]),
+        cold_line(2, 2.0, "DW", &[1]),
+        cold_line(3, 5.0, "KT", &[4]),
+        cold_line(4, 6.0, "KT", &[3]),
+    ];
+    std::fs::write(seq.join("nodes.dat"), nodes.join("\n") + "\n").unwrap();
+    let rooms = "0 1-CR-1\n1 1-CR-1\n2 1-DW-1\n3 1-KT-1\n4 1-KT-1\n";
+    std::fs::write(seq.join("rooms.dat"), rooms).unwrap();
+    let ev = dir.path().join("ev.json");
+    std::fs::write(
+        &ev,
+        "{\"format\": 1, \"evidence\": {\n\"4\": [0, 0, 0, 0, 0, 0, 0, 1, 0, 0]\n}}",
+    )
+    .unwrap();
+    let out = bin()
+        .args(["infer", "--model"])
+        .arg(repo("generated/demo/model.json"))
+        .arg("--map")
+        .arg(&seq)
+        .arg("--evidence")
+        .arg(&ev)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("warning:") && err.contains("2 of its 5 places") && err.contains("ids 3, 4"),
+        "{err}"
+    );
+    assert!(
+        err.contains("ev.json:2")
+            && err.contains("place id 4 was dropped")
+            && err.contains("not in the largest connected component"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_shipped_maps_are_found_with_no_set_up() {
+    let (table, _) = ok(bin().arg("stats"));
+    for b in ["Freiburg", "Saarbrucken", "Stockholm"] {
+        assert!(table.contains(b), "{table}");
+    }
+    let v: Value = serde_json::from_str(
+        &ok(bin()
+            .args(["infer", "--model"])
+            .arg(repo("generated/demo/model.json"))
+            .args(["--map", "Freiburg/seq1_cloudy1"]))
+        .0,
+    )
+    .unwrap();
+    assert_eq!(v["map"], "Freiburg/seq1_cloudy1");
+}
+
+#[test]
+fn reproduce_needs_only_out_and_refuses_a_non_empty_folder_before_computing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    ok(bin().args(["reproduce", "--quick", "--out"]).arg(&out));
+    let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
+    assert!(report.contains('#'));
+    // No temporary folder is left next to the output.
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(names.len(), 1);
+    // Again without --force: refused at once, the report untouched.
+    let t = std::time::SystemTime::now();
+    let again = bin()
+        .args(["reproduce", "--quick", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(again.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--force"));
+    assert!(
+        std::fs::metadata(out.join("REPORT.md"))
+            .unwrap()
+            .modified()
+            .unwrap()
+            < t
+    );
+}
+
+#[test]
+fn force_replaces_an_existing_output_atomically() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("floor.json");
+    std::fs::write(&out, "old\n").unwrap();
+    ok(bin()
+        .args(["generate", "--places", "30", "--force", "--out"])
+        .arg(&out));
+    assert!(
+        std::fs::read_to_string(&out)
+            .unwrap()
+            .contains("\"places\"")
+    );
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(names.len(), 1, "no temporary file left behind");
 }
