@@ -2225,3 +2225,40 @@ fn force_replaces_an_existing_output_atomically() {
     let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert_eq!(names.len(), 1, "no temporary file left behind");
 }
+
+#[test]
+fn the_examples_of_docs_formats_are_accepted() {
+    let text = std::fs::read_to_string(repo("docs/FORMATS.md")).unwrap();
+    let blocks: Vec<&str> = text
+        .split("```json\n")
+        .skip(1)
+        .map(|b| b.split("```").next().unwrap())
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let file = |name: &str, k: usize| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, blocks[k]).unwrap();
+        p
+    };
+    let (map, model, ev, decs) = (
+        file("map.json", 0),
+        file("model.json", 1),
+        file("ev.json", 2),
+        file("decs.json", 3),
+    );
+    // The example model (relative weights 1 and 4) on the example map.
+    let v = infer_json(&model, &map, None);
+    assert!((probs(&v, 0)[1] - 4.0 / 13.0).abs() < 1e-12, "{v}");
+    // The example evidence and decompositions with the demo model.
+    let (out, _) = ok(bin()
+        .args(["infer", "--model"])
+        .arg(repo("generated/demo/model.json"))
+        .arg("--map")
+        .arg(&map)
+        .arg("--evidence")
+        .arg(&ev)
+        .arg("--decompositions-file")
+        .arg(&decs));
+    let v: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["places"][1]["argmax"], "CR");
+}
