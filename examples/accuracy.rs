@@ -7,7 +7,6 @@
 //! shipped COLD maps, or `$GRAPHSPN_DATA` when set)
 //! (default test building Stockholm, seed 0).
 
-use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};

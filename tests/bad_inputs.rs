@@ -771,7 +771,7 @@ fn corpus(root: &Path) -> Vec<Case> {
         ("not_json", "evidence!".to_string(), vec![":1:"]),
         (
             "unknown_field",
-            format!("{{\"format\": 1, \"evidence\": {{}},\n\"extra\": 3}}"),
+            "{\"format\": 1, \"evidence\": {},\n\"extra\": 3}".to_string(),
             vec![":2:", "extra"],
         ),
         ("list", "[1, 2, 3]".to_string(), vec![":1:"]),

@@ -25,8 +25,11 @@ fn demo_floor() -> TopoMap {
     .unwrap()
 }
 
+/// A change to a model and a fragment of the message it must cause.
+type Mutation = (fn(&mut Model), &'static str);
+
 /// Singleton SPN (index 3) mutations: what to change and the fragments of the message.
-fn mutations() -> Vec<(fn(&mut Model), &'static str)> {
+fn mutations() -> Vec<Mutation> {
     vec![
         (|m| m.spns[3].root = 11, "root node 11"),
         (

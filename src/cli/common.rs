@@ -186,8 +186,8 @@ pub fn instance_of(
     map: &TopoMap,
     decompositions: Vec<Decomposition>,
 ) -> Result<Instance> {
-    Ok(Instance::build(model, map, decompositions)
-        .with_context(|| format!("building the instance of map {:?}", map.name))?)
+    Instance::build(model, map, decompositions)
+        .with_context(|| format!("building the instance of map {:?}", map.name))
 }
 
 /// Writes `text` to standard output; a closed pipe (e.g. `| head`) is not an error.

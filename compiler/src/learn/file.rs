@@ -59,8 +59,8 @@ pub enum ModelFileError {
         template: String,
         /// Position of the template (and its SPN) in the model.
         index: usize,
-        /// What is wrong, naming the node.
-        source: TemplateSpnError,
+        /// What is wrong, naming the node (boxed: keeps the error small).
+        source: Box<TemplateSpnError>,
     },
     /// The model is inconsistent or holds a value JSON cannot represent.
     #[error("{source_name}: {message}")]
@@ -218,7 +218,7 @@ impl Model {
                     source_name: source_name.to_string(),
                     template: t.name.clone(),
                     index,
-                    source,
+                    source: Box::new(source),
                 }
             })?;
         }
