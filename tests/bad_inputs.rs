@@ -2262,3 +2262,31 @@ fn the_examples_of_docs_formats_are_accepted() {
     let v: Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["places"][1]["argmax"], "CR");
 }
+
+#[test]
+fn every_subcommand_help_has_an_example() {
+    let commands = [
+        "stats",
+        "render",
+        "train",
+        "infer",
+        "instance",
+        "reproduce",
+        "compile",
+        "decompose",
+        "generate",
+    ];
+    for c in commands {
+        let (help, _) = ok(bin().args([c, "--help"]));
+        assert!(
+            help.contains("Example") && help.contains(&format!("graphspn {c} ")),
+            "{c} --help has no example:\n{help}"
+        );
+    }
+    // infer's help describes the evidence format itself.
+    let (help, _) = ok(bin().args(["infer", "--help"]));
+    assert!(
+        help.contains("\"evidence\"") && help.contains("likelihood"),
+        "{help}"
+    );
+}
