@@ -181,7 +181,8 @@ fn state_matches_stateless_and_interpreter() {
         ),
     ];
     for seq in ["Freiburg/seq1_cloudy1", "Stockholm/floor4_cloudy_a1"] {
-        let map = graphspn::codegen::load_map(&data.join(seq)).unwrap_or_else(|e| panic!("{seq}: {e}"));
+        let map =
+            graphspn::codegen::load_map(&data.join(seq)).unwrap_or_else(|e| panic!("{seq}: {e}"));
         maps.push((seq.replace('/', "_").to_lowercase(), map));
     }
     let mut cases = Vec::new();

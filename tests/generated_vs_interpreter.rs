@@ -105,15 +105,8 @@ fn demo_floor_matches_interpreter() {
 
 #[test]
 fn cold_maps_match_interpreter() {
-    let Some(data) = std::env::var_os("GRAPHSPN_DATA").map(PathBuf::from) else {
-        eprintln!("GRAPHSPN_DATA is not set: skipping the COLD maps");
-        return;
-    };
-    assert!(
-        data.is_dir(),
-        "GRAPHSPN_DATA={} is not a folder",
-        data.display()
-    );
+    let data = graphspn::map::cold::data_dir(None);
+    assert!(data.is_dir(), "{} is not a folder", data.display());
     let all = std::env::var_os("GRAPHSPN_ALL_MAPS").is_some();
     let cap = if all {
         usize::MAX

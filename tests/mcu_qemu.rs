@@ -45,7 +45,11 @@ fn stack_bounds(file: &str) -> [usize; 4] {
         .seed(0)
         .count(5);
     let (_, r) = b.report_from(&b.load().unwrap()).unwrap();
-    assert!(r.stack_marginals <= 16 * 1024, "{file}: bound {} > 16 KiB", r.stack_marginals);
+    assert!(
+        r.stack_marginals <= 16 * 1024,
+        "{file}: bound {} > 16 KiB",
+        r.stack_marginals
+    );
     [
         r.stack_log_likelihood,
         r.stack_marginals,

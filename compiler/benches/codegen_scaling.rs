@@ -4,7 +4,7 @@
 //! Model: `$GRAPHSPN_MODEL`, else the demo model the `generated` crate ships
 //! (`generated/demo/model.json`, trained on all COLD maps). Maps: synthetic office floors
 //! (`map::synthetic`) of about 100, 1,000 and 10,000 places (`CODEGEN_SIZES` to
-//! choose), plus Saarbrucken's largest COLD map when `GRAPHSPN_DATA` is set; each with 5
+//! choose), plus Saarbrucken's largest COLD map (shipped copy, or `$GRAPHSPN_DATA`); each with 5
 //! decompositions from the real decomposer (`decompose_best`, 15 candidates).
 //! For every map a crate holding just the generated module is built in release mode
 //! (`target/codegen-bench`, the runtime prebuilt so the time is the module's own; the
@@ -86,9 +86,10 @@ fn maps(model: &Model) -> Vec<(String, TopoMap)> {
         .filter_map(|s| s.trim().parse().ok())
         .collect();
     let mut out = vec![];
-    if let Some(data) = std::env::var_os("GRAPHSPN_DATA") {
+    {
+        let data = graphspn_compiler::map::cold::data_dir(None);
         let maps = graphspn_compiler::map::cold::load_building(&data, "Saarbrucken")
-            .expect("GRAPHSPN_DATA is set but Saarbrucken does not load");
+            .expect("the COLD data folder holds Saarbrucken");
         let big = maps
             .into_iter()
             .max_by_key(|m| m.num_places())

@@ -9,7 +9,9 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use super::{CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation, generate_with_report};
+use super::{
+    CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation, generate_with_report,
+};
 use crate::decompose::file::DecompositionFileError;
 use crate::decompose::{DecomposeError, Decomposition, DecompositionParams, decompose_best};
 use crate::learn::{Model, ModelFileError};

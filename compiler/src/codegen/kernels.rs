@@ -25,7 +25,6 @@ use std::collections::BTreeMap;
 
 use crate::spn::{Node, NodeId, Spn};
 
-
 /// Largest number of child vectors of one segment.
 pub const MAX_ARITY: usize = 3;
 /// Largest number of weights of one segment (`M·ΠK`), to keep statics reasonable.

@@ -157,7 +157,11 @@ impl SparseCode<'_> {
                         let _ = if max {
                             writeln!(body, "{acc} = {acc}.max({p} * V::splat({}));", l.num(w))
                         } else {
-                            writeln!(body, "{acc} = ({p}).mul_add(V::splat({}), {acc});", l.num(d))
+                            writeln!(
+                                body,
+                                "{acc} = ({p}).mul_add(V::splat({}), {acc});",
+                                l.num(d)
+                            )
                         };
                     }
                 }
@@ -264,7 +268,8 @@ impl SparseCode<'_> {
                             match self.product(seg, t, Some(q)) {
                                 Some(o) => {
                                     ops += seg.inputs.len() - 1;
-                                    let _ = writeln!(body, "{target} = ({o}).mul_add(h, {target});");
+                                    let _ =
+                                        writeln!(body, "{target} = ({o}).mul_add(h, {target});");
                                 }
                                 None => {
                                     let _ = writeln!(body, "{target} = {target} + h;");
@@ -315,7 +320,8 @@ impl SparseCode<'_> {
                 if sr.iter().any(|r| r.floor > 0.0) {
                     for &g in &seg.inputs {
                         if done.insert(g) {
-                            let _ = writeln!(body, "let (mv{g}, iv{g}) = {P}amax(&{});", vec_name(g));
+                            let _ =
+                                writeln!(body, "let (mv{g}, iv{g}) = {P}amax(&{});", vec_name(g));
                         }
                     }
                 }
@@ -332,7 +338,8 @@ impl SparseCode<'_> {
                     };
                     if row.floor > 0.0 {
                         let f: Vec<String> = seg.inputs.iter().map(|g| format!("mv{g}")).collect();
-                        let ivs: Vec<String> = seg.inputs.iter().map(|g| format!("iv{g}")).collect();
+                        let ivs: Vec<String> =
+                            seg.inputs.iter().map(|g| format!("iv{g}")).collect();
                         ops += f.len();
                         let _ = writeln!(
                             body,

@@ -155,9 +155,8 @@ pub fn module(
             "// template {k} ({:?}): {}",
             model.templates[k].name,
             match num {
-                Numerics::Linear { min_value, min_max } => format!(
-                    "linear space, value ≥ {min_value:e}, max-product ≥ {min_max:e}"
-                ),
+                Numerics::Linear { min_value, min_max } =>
+                    format!("linear space, value ≥ {min_value:e}, max-product ≥ {min_max:e}"),
                 Numerics::Log => "log space".into(),
             }
         );
@@ -256,7 +255,10 @@ pub fn module(
             .map(|g| {
                 let lanes_text: Vec<String> = (0..lanes)
                     .map(|ln| {
-                        let u = tp.members.get(g * lanes + ln).unwrap_or(&tp.members[g * lanes]);
+                        let u = tp
+                            .members
+                            .get(g * lanes + ln)
+                            .unwrap_or(&tp.members[g * lanes]);
                         let ps: Vec<String> =
                             uniques[*u].places.iter().map(|p| p.to_string()).collect();
                         format!("[{}]", ps.join(", "))
@@ -315,7 +317,11 @@ pub fn module(
         }
     }
     let max_units = place_units.iter().map(Vec::len).max().unwrap_or(0).max(1);
-    let unit_t = if groups < usize::from(u16::MAX) { "u16" } else { "u32" };
+    let unit_t = if groups < usize::from(u16::MAX) {
+        "u16"
+    } else {
+        "u32"
+    };
     let units_text: Vec<String> = place_units
         .iter()
         .map(|us| {
@@ -412,9 +418,8 @@ pub fn module(
     let top = d_count * 32 + 1024;
     let state_bytes =
         n * c * scalar + n * scalar + u_total * scalar + rows * c * scalar + d_count * scalar + 16;
-    let per_groups = |f: &dyn Fn(&Tpl) -> usize| -> usize {
-        tpls.iter().map(|tp| tp.groups() * f(tp)).sum()
-    };
+    let per_groups =
+        |f: &dyn Fn(&Tpl) -> usize| -> usize { tpls.iter().map(|tp| tp.groups() * f(tp)).sum() };
     let macs_ll = per_groups(&|tp| tp.counts.fwd);
     let macs_marg = macs_ll + per_groups(&|tp| tp.counts.post) + rows * c;
     let macs_mpe = per_groups(&|tp| tp.counts.max)
@@ -438,11 +443,14 @@ pub fn module(
         lanes: simd_lanes,
         components: uniques.len(),
         stack_log_likelihood: top + deepest,
-        stack_marginals: top + d_count * scalar + deepest + tpls
-            .iter()
-            .map(|tp| tp.vars * c * tp.lanes * scalar)
-            .max()
-            .unwrap_or(0),
+        stack_marginals: top
+            + d_count * scalar
+            + deepest
+            + tpls
+                .iter()
+                .map(|tp| tp.vars * c * tp.lanes * scalar)
+                .max()
+                .unwrap_or(0),
         stack_mpe: top + deepest,
         stack_state: top + deepest,
         state_bytes,

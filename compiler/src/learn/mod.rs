@@ -17,7 +17,7 @@ pub mod symmetry;
 #[cfg(feature = "host")]
 pub mod train;
 
-pub use file::ModelFileError;
+pub use file::{ModelFileError, TemplateSpnError, check_template_spn, normalise_weights};
 #[cfg(feature = "host")]
 pub use from_maps::{TemplateTraining, TrainModelError, template_samples, train_model};
 pub use model::Model;

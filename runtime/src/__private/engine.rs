@@ -152,7 +152,10 @@ pub fn log_scale<T: Real, const N: usize, const C: usize>(e: &[[T; C]; N], label
 fn row_scale<T: Real, const C: usize>(row: &[T; C], label: u16) -> T {
     match row.get(usize::from(label)) {
         Some(&v) => v,
-        None => row.iter().copied().fold(T::ZERO, |a, b| if b > a { b } else { a }),
+        None => row
+            .iter()
+            .copied()
+            .fold(T::ZERO, |a, b| if b > a { b } else { a }),
     }
 }
 

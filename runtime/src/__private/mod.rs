@@ -387,7 +387,9 @@ macro_rules! real_impl {
                 if ex == $emask as i32 {
                     return (self, 0);
                 }
-                let m = $t::from_bits((b & !(($emask as $bits) << $mant)) | (($bias as $bits) << $mant));
+                let m = $t::from_bits(
+                    (b & !(($emask as $bits) << $mant)) | (($bias as $bits) << $mant),
+                );
                 (m, ex - $bias + shift)
             }
         }
