@@ -44,8 +44,8 @@ pub struct CompileArgs {
     #[arg(long)]
     f64: bool,
     /// Stack budget (bytes): fail when a generated entry point could need more.
-    #[arg(long, default_value_t = graphspn::codegen::DEFAULT_STACK_BYTES)]
-    max_stack_bytes: usize,
+    #[arg(long)]
+    max_stack_bytes: Option<usize>,
     /// Code for a target without float SIMD (Cortex-M, RISC-V MCUs): one component
     /// per call instead of SIMD lane groups.
     #[arg(long)]
@@ -110,7 +110,6 @@ pub fn run(args: CompileArgs) -> Result<()> {
         .out_file(&args.out)
         .overwrite(args.force)
         .cargo_metadata(false)
-        .max_stack_bytes(args.max_stack_bytes)
         .vectorisation(if args.scalar {
             Vectorisation::Scalar
         } else {
@@ -121,6 +120,9 @@ pub fn run(args: CompileArgs) -> Result<()> {
         } else {
             Precision::F32
         });
+    if let Some(bytes) = args.max_stack_bytes {
+        b = b.max_stack_bytes(bytes);
+    }
     b = match decompositions {
         Some(d) => b.decompositions(d),
         None => b.seed(args.seed).count(args.count),

@@ -253,7 +253,7 @@ pub struct Builder {
     out_dir: Option<PathBuf>,
     out_file: Option<PathBuf>,
     vectorisation: Option<Vectorisation>,
-    max_stack_bytes: usize,
+    max_stack_bytes: Option<usize>,
     cargo_lines: bool,
     overwrite: bool,
 }
@@ -272,7 +272,7 @@ impl Builder {
             out_dir: None,
             out_file: None,
             vectorisation: None,
-            max_stack_bytes: CodegenOptions::default().max_stack_bytes,
+            max_stack_bytes: None,
             cargo_lines: true,
             overwrite: false,
         }
@@ -356,10 +356,11 @@ impl Builder {
         self
     }
 
-    /// Stack budget (bytes, default 16 KiB; see [`CodegenOptions::max_stack_bytes`]):
-    /// generation fails when a generated entry point could need more.
+    /// Stack budget (bytes; default 16 KiB for scalar code, 64 KiB for SIMD code, see
+    /// [`CodegenOptions::max_stack_bytes`]): generation fails when a generated entry
+    /// point could need more.
     pub fn max_stack_bytes(mut self, bytes: usize) -> Self {
-        self.max_stack_bytes = bytes;
+        self.max_stack_bytes = Some(bytes);
         self
     }
 

@@ -90,13 +90,27 @@ pub struct CodegenOptions {
     /// Name of the model written into the `@generated` header (e.g. its file name).
     pub model_label: String,
     /// Stack budget (bytes): generation fails when the computed worst-case stack of
-    /// any generated entry point (template frames included) exceeds it. Default
-    /// [`DEFAULT_STACK_BYTES`] (16 KiB).
-    pub max_stack_bytes: usize,
+    /// any generated entry point (template frames included) exceeds it. `None`:
+    /// [`DEFAULT_STACK_BYTES`] (16 KiB) for scalar code (microcontrollers),
+    /// [`DEFAULT_SIMD_STACK_BYTES`] (64 KiB) for SIMD lane groups (hosts, whose lane
+    /// frames are 4–8 times larger).
+    pub max_stack_bytes: Option<usize>,
 }
 
-/// Default of [`CodegenOptions::max_stack_bytes`].
+/// Default stack budget of scalar code, see [`CodegenOptions::max_stack_bytes`].
 pub const DEFAULT_STACK_BYTES: usize = 16 * 1024;
+/// Default stack budget of SIMD code, see [`CodegenOptions::max_stack_bytes`].
+pub const DEFAULT_SIMD_STACK_BYTES: usize = 64 * 1024;
+
+impl CodegenOptions {
+    /// The stack budget in force: [`CodegenOptions::max_stack_bytes`] or its default.
+    pub fn stack_budget(&self) -> usize {
+        self.max_stack_bytes.unwrap_or(match self.vectorisation {
+            Vectorisation::Scalar => DEFAULT_STACK_BYTES,
+            Vectorisation::Simd => DEFAULT_SIMD_STACK_BYTES,
+        })
+    }
+}
 
 impl Default for CodegenOptions {
     fn default() -> Self {
@@ -104,7 +118,7 @@ impl Default for CodegenOptions {
             precision: Precision::F32,
             vectorisation: Vectorisation::Simd,
             model_label: "model".into(),
-            max_stack_bytes: DEFAULT_STACK_BYTES,
+            max_stack_bytes: None,
         }
     }
 }

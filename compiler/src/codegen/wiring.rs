@@ -465,10 +465,10 @@ pub fn module(
         .max(report.stack_log_likelihood)
         .max(report.stack_mpe)
         .max(report.stack_state);
-    if worst > options.max_stack_bytes {
+    if worst > options.stack_budget() {
         return Err(CodegenError::BadOption(format!(
             "the generated code needs up to {worst} bytes of stack per call, more than the budget of {} bytes (max_stack_bytes)",
-            options.max_stack_bytes
+            options.stack_budget()
         )));
     }
     let ids: Vec<String> = map.places().map(|p| p.id.to_string()).collect();
@@ -630,7 +630,7 @@ pub fn mpe(e: &Evidence, labels: &mut Labels) -> Result<{t}, ::graphspn_runtime:
 
 /// Streaming inference for a robot that gets evidence one place at a time: the
 /// caller-owned cache of every component's value and local posteriors (fixed size,
-/// [`STATE_BYTES`] bytes, no allocation; `const` constructor, so it can live in a
+/// [`STATE_BYTES`] bytes, nothing on the heap; `const` constructor, so it can live in a
 /// `static` or `.bss`).
 ///
 /// An update (`set_evidence`, `observe`, `clear_evidence`) re-evaluates only the
