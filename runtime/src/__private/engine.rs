@@ -17,6 +17,17 @@
 use super::{Lanes, Real};
 use crate::EvidenceError;
 
+/// A template's value + local posteriors function (see [`Tpl::post`]).
+pub type PostFn<W, const NV: usize, const C: usize> = fn(&[[W; C]; NV], &mut [[W; C]; NV]) -> W;
+/// A template's scalar MPE function (see [`Tpl::mpe`]).
+pub type MpeFn<T, const NV: usize, const C: usize> = fn(&[[T; C]; NV], &mut [u16; NV]) -> T;
+
+/// `a > b`; `false` when either is NaN.
+#[inline(always)]
+fn above<T: PartialOrd>(a: T, b: T) -> bool {
+    a > b
+}
+
 /// One template of a compiled map: its component table and generated functions.
 ///
 /// `W` is the lane vector (`L` components per call), `NV` the template's places, `C`
@@ -32,11 +43,11 @@ pub struct Tpl<W: Lanes, const L: usize, const NV: usize, const C: usize> {
     /// Value of each lane's component on scaled evidence.
     pub fwd: fn(&[[W; C]; NV]) -> W,
     /// Value and local posteriors `x_i[c]·∂T/∂x_i[c] / T` of each lane's component.
-    pub post: fn(&[[W; C]; NV], &mut [[W; C]; NV]) -> W,
+    pub post: PostFn<W, NV, C>,
     /// Max-product value of each lane's component.
     pub max: fn(&[[W; C]; NV]) -> W,
     /// Max-product value of one component and its arg-max labelling.
-    pub mpe: fn(&[[W::Scalar; C]; NV], &mut [u16; NV]) -> W::Scalar,
+    pub mpe: MpeFn<W::Scalar, NV, C>,
 }
 
 /// A non-negative product kept as `m · 2^e · e^lg` (`m` in `[1, 2)` or `0`), see the
@@ -85,7 +96,7 @@ impl<T: Real> Acc<T> {
     /// `true` when the product is `0` (or its log is `-inf`).
     #[inline]
     pub fn is_zero(&self) -> bool {
-        !(self.m > T::ZERO) || !(self.lg > T::NEG_INFINITY)
+        !above(self.m, T::ZERO) || !above(self.lg, T::NEG_INFINITY)
     }
 }
 
@@ -445,7 +456,7 @@ pub fn check_row<T: Real, const C: usize>(
 pub fn fuse_rows<T: Real, const C: usize>(a: &[T; C], b: &[T; C]) -> Option<[T; C]> {
     // Scale each factor first so the product can neither underflow nor overflow.
     let (sa, sb) = (row_scale(a, u16::MAX), row_scale(b, u16::MAX));
-    if !(sa > T::ZERO) || !(sb > T::ZERO) {
+    if !above(sa, T::ZERO) || !above(sb, T::ZERO) {
         return None;
     }
     let (ia, ib) = (T::ONE / sa, T::ONE / sb);
@@ -454,7 +465,7 @@ pub fn fuse_rows<T: Real, const C: usize>(a: &[T; C], b: &[T; C]) -> Option<[T; 
         *o = (x * ia) * (y * ib);
     }
     let s = row_scale(&f, u16::MAX);
-    if !(s > T::ZERO) || !s.is_finite() {
+    if !above(s, T::ZERO) || !s.is_finite() {
         return None;
     }
     let inv = T::ONE / s;
