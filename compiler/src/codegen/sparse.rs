@@ -136,6 +136,8 @@ impl SparseCode<'_> {
                     let _ = writeln!(body, "let fp{b}_{s} = {};", f.join(" * "));
                 }
             }
+            // Row `m` gathers its terms from every segment (`seg_rows[s][m]`).
+            #[allow(clippy::needless_range_loop)]
             for m in 0..block.sums.len() {
                 let acc = format!("b{b}[{m}]");
                 for (s, seg) in block.segments.iter().enumerate() {
@@ -326,6 +328,8 @@ impl SparseCode<'_> {
                     }
                 }
             }
+            // Row `m` gathers its candidates from every segment (`seg_rows[s][m]`).
+            #[allow(clippy::needless_range_loop)]
             for m in 0..m_len {
                 let _ = writeln!(body, "let mut r = -1.0{t};");
                 for (s, seg) in block.segments.iter().enumerate() {
