@@ -166,7 +166,7 @@ fn main() {
 fn state_matches_stateless_and_interpreter() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let demo = root.join("generated/demo");
-    let model = Model::load(&demo.join("model.json")).unwrap();
+    let model = Model::load(demo.join("model.json")).unwrap();
     let steps = env_usize("GRAPHSPN_STATE_STEPS", STEPS);
     let drift = env_usize("GRAPHSPN_STATE_DRIFT_STEPS", DRIFT_STEPS);
     let data = root.join("data/cold-topomaps");
