@@ -751,7 +751,10 @@ impl State {{
     pub fn observe(&mut self, place: usize, row: &[{t}; NUM_CLASSES]) -> Result<(), ::graphspn_runtime::EvidenceError> {{
         let id = Self::place_index(place)?;
         {P}check_row(row, place, id)?;
-        let old = self.ev.get(place).copied().unwrap_or([1.0; NUM_CLASSES]);
+        let old = match self.ev.get(place) {{
+            Some(r) => *r,
+            None => [1.0; NUM_CLASSES],
+        }};
         match {P}fuse_rows(&old, row) {{
             Some(f) => {{
                 self.store(place, f, 0.0);
