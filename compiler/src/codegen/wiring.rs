@@ -173,9 +173,11 @@ pub fn module(
                     mpe: code.mpe(&l, &mut fns),
                 };
                 let sums: usize = plan.blocks.iter().map(|b| b.sums.len()).sum();
-                // Block values and adjoints, variable adjoints, and room for spills
-                // of the straight-line temporaries.
-                let frame = (2 * sums + vars * c) * simd_lanes * scalar + 2048;
+                // Block values and adjoints, variable adjoints, MPE arguments and
+                // selections, and room for spills of the straight-line temporaries
+                // (Cortex-M4F, 230-place map: the Star's MPE function has a 4.1 KB
+                // frame, its posterior function 2.2 KB).
+                let frame = (2 * sums + vars * c) * simd_lanes * scalar + 10 * sums + 4096;
                 Tpl {
                     prefix,
                     lanes: simd_lanes,
