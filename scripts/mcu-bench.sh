@@ -11,9 +11,12 @@
 #
 # flash: bytes of machine code and tables of the map's generated module (symbol
 # sizes, `nm`), and in brackets the whole firmware's .text + .rodata (`size`);
-# RAM: the map's buffers in .bss (evidence, marginals, two label arrays) + the
-# largest peak stack of its four calls. Stack and instructions per call:
-# log_likelihood / marginals / mpe / labelled_log_likelihood.
+# RAM: the map's buffers in .bss (evidence, marginals, two label arrays, the
+# streaming state) + the largest peak stack of its calls. Stack and instructions per call:
+# log_likelihood / marginals / mpe / labelled_log_likelihood. Streaming step: median
+# instructions of one `State::observe` + `marginals` (all places) and of one
+# `observe` + `marginal(place)`, with how many times fewer than one stateless
+# `marginals` call.
 #
 # Usage: scripts/mcu-bench.sh [PROFILE...]   (default: release size size-all)
 set -euo pipefail
@@ -60,8 +63,8 @@ for map in demo_floor saarbrucken_seq2_night1; do
     echo
     echo "### $map"
     echo
-    echo "| target | profile | flash: map (firmware) | RAM: buffers + peak stack | stack per call (B) | instructions per call |"
-    echo "|---|---|---|---|---|---|"
+    echo "| target | profile | flash: map (firmware) | RAM: buffers + peak stack | stack per call (B) | instructions per call | streaming step: observe + marginals / observe + marginal |"
+    echo "|---|---|---|---|---|---|---|"
     for t in "${TARGETS[@]}"; do
         for p in "${PROFILES[@]}"; do
             awk -v map="$map" -v t="${t%%-*}" -v p="$p" -v sizes="$out/$t.$p.size" '
@@ -72,15 +75,33 @@ for map in demo_floor saarbrucken_seq2_night1; do
                         else if (f[1] == map) { flash = f[2]; buffers = f[3] }
                     }
                 }
+                function median(a, n,    i, j, x) {
+                    for (i = 2; i <= n; i++) {
+                        x = a[i]
+                        for (j = i - 1; j >= 1 && a[j] > x; j--) a[j + 1] = a[j]
+                        a[j + 1] = x
+                    }
+                    return a[int((n + 1) / 2)]
+                }
                 $1 == "map" { on = ($2 == map) }
                 on && $1 == "call" {
                     split($3, i, "="); split($4, s, "=")
                     ins = ins sep i[2]; st = st sep s[2]; sep = " / "
                     if (s[2] + 0 > peak) peak = s[2] + 0
+                    if ($2 == "marginals") full = i[2]
+                }
+                on && $1 == "stream" { split($4, s, "="); if (s[2] + 0 > peak) peak = s[2] + 0 }
+                on && $1 == "step" {
+                    split($5, i, "="); split($6, s, "=")
+                    if (s[2] + 0 > peak) peak = s[2] + 0
+                    if ($3 == "observe_marginals") all[++na] = i[2] + 0
+                    else one[++no] = i[2] + 0
                 }
                 END {
-                    printf "| %s | %s | %d (%d) | %d + %d = %d | %s | %s |\n",
-                        t, p, flash, total, buffers, peak, buffers + peak, st, ins
+                    ma = median(all, na); mo = median(one, no)
+                    printf "| %s | %s | %d (%d) | %d + %d = %d | %s | %s | %d (%.1fx) / %d (%.1fx) |\n",
+                        t, p, flash, total, buffers, peak, buffers + peak, st, ins,
+                        ma, full / ma, mo, full / mo
                 }' "$out/$t.$p.txt"
         done
     done

@@ -37,8 +37,9 @@ use graphspn_generated::{demo_floor, saarbrucken_seq2_night1};
 
 /// The generator's stack bounds of the firmware's scalar module of map `file`
 /// (`STACK_BYTES_*` of the module: log-likelihood, marginals, MPE, labelled
-/// log-likelihood), computed by the same `Builder` the firmware's build script uses.
-fn stack_bounds(file: &str) -> [usize; 4] {
+/// log-likelihood, and last the streaming state's calls), computed by the same
+/// `Builder` the firmware's build script uses.
+fn stack_bounds(file: &str) -> [usize; 5] {
     let demo = root().join("generated/demo");
     let b = graphspn::codegen::Builder::new(demo.join("model.json"), demo.join(file))
         .vectorisation(graphspn::codegen::Vectorisation::Scalar)
@@ -55,6 +56,7 @@ fn stack_bounds(file: &str) -> [usize; 4] {
         r.stack_marginals,
         r.stack_mpe,
         r.stack_log_likelihood,
+        r.stack_state,
     ]
 }
 
@@ -100,6 +102,11 @@ struct MapReport {
     /// `f32` bits, one row per place.
     marginals: Vec<Vec<u32>>,
     mpe: Vec<u16>,
+    /// The streaming state's calls: `set_all`, then one per step (named
+    /// `observe_marginals` or `observe_marginal`), with the step's place.
+    stream: Vec<(Call, Option<usize>)>,
+    /// The state's marginals after the last step (`f32` bits, one row per place).
+    state_marginals: Vec<Vec<u32>>,
 }
 
 /// A parsed firmware report.
@@ -115,6 +122,20 @@ fn field<T: std::str::FromStr>(line: &str, key: &str) -> T {
         .find_map(|w| w.strip_prefix(key)?.strip_prefix('='))
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| panic!("no {key}= in report line {line:?}"))
+}
+
+/// A call record named `name`: `instructions=<n> stack=<b> value=<bits>|error=<e>`.
+fn call(name: &str, line: &str) -> Call {
+    let value = match line.split_once(" value=") {
+        Some((_, v)) => Ok(u32::from_str_radix(v.trim(), 16).unwrap()),
+        None => Err(line.split_once(" error=").map_or("?", |x| x.1).to_string()),
+    };
+    Call {
+        name: name.to_string(),
+        instructions: field(line, "instructions"),
+        stack: field(line, "stack"),
+        value,
+    }
 }
 
 fn parse(text: &str) -> Report {
@@ -140,27 +161,37 @@ fn parse(text: &str) -> Report {
                 calls: vec![],
                 marginals: vec![],
                 mpe: vec![],
+                stream: vec![],
+                state_marginals: vec![],
             }),
             Some("call") => {
-                let name = words.next().unwrap().to_string();
-                let value = match line.split_once(" value=") {
-                    Some((_, v)) => Ok(u32::from_str_radix(v.trim(), 16).unwrap()),
-                    None => Err(line.split_once(" error=").map_or("?", |x| x.1).to_string()),
-                };
-                let call = Call {
-                    name,
-                    instructions: field(line, "instructions"),
-                    stack: field(line, "stack"),
-                    value,
-                };
+                let call = call(words.next().unwrap(), line);
                 maps.last_mut().expect("a map line first").calls.push(call);
             }
-            Some("marginals") => {
+            Some("stream") => {
+                let call = call(words.next().unwrap(), line);
+                maps.last_mut()
+                    .expect("a map line first")
+                    .stream
+                    .push((call, None));
+            }
+            Some("step") => {
                 let m = maps.last_mut().expect("a map line first");
+                let i: usize = words.next().unwrap().parse().unwrap();
+                assert_eq!(i + 1, m.stream.len(), "steps in order, after set_all");
+                let call = call(words.next().unwrap(), line);
+                m.stream.push((call, Some(field(line, "place"))));
+            }
+            Some(tag @ ("marginals" | "state_marginals")) => {
+                let m = maps.last_mut().expect("a map line first");
+                let rows = if tag == "marginals" {
+                    &mut m.marginals
+                } else {
+                    &mut m.state_marginals
+                };
                 let p: usize = words.next().unwrap().parse().unwrap();
-                assert_eq!(p, m.marginals.len(), "marginal rows in order");
-                m.marginals
-                    .push(words.map(|w| u32::from_str_radix(w, 16).unwrap()).collect());
+                assert_eq!(p, rows.len(), "{tag} rows in order");
+                rows.push(words.map(|w| u32::from_str_radix(w, 16).unwrap()).collect());
             }
             Some("mpe") => {
                 maps.last_mut().expect("a map line first").mpe =
@@ -490,22 +521,150 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     differ
 }
 
-/// One map's results: name, call values, marginals, MPE labels (all as bits).
-type MapResults = (String, Vec<Result<u32, String>>, Vec<Vec<u32>>, Vec<u16>);
+/// One map's results: everything but instruction counts and stack, which must
+/// agree bit for bit between builds of the same code.
+#[derive(Debug, PartialEq)]
+struct MapResults {
+    name: String,
+    values: Vec<Result<u32, String>>,
+    marginals: Vec<Vec<u32>>,
+    mpe: Vec<u16>,
+    stream: Vec<(Result<u32, String>, Option<usize>)>,
+    state_marginals: Vec<Vec<u32>>,
+}
 
-/// Everything but instruction counts and stack: what must agree bit for bit.
 fn results(r: &Report) -> Vec<MapResults> {
     r.maps
         .iter()
-        .map(|m| {
-            (
-                m.name.clone(),
-                m.calls.iter().map(|c| c.value.clone()).collect(),
-                m.marginals.clone(),
-                m.mpe.clone(),
-            )
+        .map(|m| MapResults {
+            name: m.name.clone(),
+            values: m.calls.iter().map(|c| c.value.clone()).collect(),
+            marginals: m.marginals.clone(),
+            mpe: m.mpe.clone(),
+            stream: m
+                .stream
+                .iter()
+                .map(|(c, p)| (c.value.clone(), *p))
+                .collect(),
+            state_marginals: m.state_marginals.clone(),
         })
         .collect()
+}
+
+/// The firmware's streaming steps replayed on the in-process host build of a map:
+/// the value of `set_all` + `log_likelihood` and of every step, the steps' places,
+/// and the state's final marginals and evidence rows.
+struct HostStream {
+    values: Vec<f32>,
+    places: Vec<usize>,
+    marginals: Vec<Vec<f32>>,
+    evidence: Vec<Vec<f32>>,
+}
+
+macro_rules! host_stream {
+    ($m:ident, $index:expr) => {{
+        let (rows, _) = inputs($index, $m::NUM_PLACES, $m::NUM_CLASSES, $m::UNKNOWN);
+        let mut e: $m::Evidence = [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES];
+        e.as_flattened_mut().copy_from_slice(&rows);
+        let mut st = $m::State::new();
+        st.set_all(&e).unwrap();
+        let mut values = vec![st.log_likelihood().unwrap()];
+        let mut places = vec![];
+        let mut marg: $m::Marginals = [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES];
+        let mut one = [0.0f32; $m::NUM_CLASSES];
+        for i in 0..evidence::STEPS {
+            let mut row = [0.0f32; $m::NUM_CLASSES];
+            let p = evidence::step(evidence::SEED + $index, i, $m::NUM_PLACES, &mut row);
+            places.push(p);
+            st.observe(p, &row).unwrap();
+            values.push(if i % 2 == 0 {
+                st.marginals(&mut marg).unwrap()
+            } else {
+                st.marginal(p, &mut one).unwrap();
+                one[0]
+            });
+        }
+        st.marginals(&mut marg).unwrap();
+        HostStream {
+            values,
+            places,
+            marginals: marg.iter().map(|r| r.to_vec()).collect(),
+            evidence: st.evidence().iter().map(|r| r.to_vec()).collect(),
+        }
+    }};
+}
+
+/// Checks one map's streaming steps against the host build's replay (values within
+/// the tolerances, same places) and the state's final marginals against the
+/// interpreter on the state's final evidence.
+fn check_stream(target: &str, m: &MapReport, host: &HostStream) {
+    let ctx = |what: &str| format!("{target} {} stream {what}", m.name);
+    assert_eq!(m.stream.len(), host.values.len(), "{}", ctx("steps"));
+    for (i, ((call, place), &want)) in m.stream.iter().zip(&host.values).enumerate() {
+        let expected = match i {
+            0 => "set_all",
+            i if i % 2 == 1 => "observe_marginals",
+            _ => "observe_marginal",
+        };
+        assert_eq!(call.name, expected, "{}", ctx("call order"));
+        assert_eq!(
+            *place,
+            i.checked_sub(1).map(|s| host.places[s]),
+            "{}",
+            ctx("places")
+        );
+        let bits = call
+            .value
+            .as_ref()
+            .unwrap_or_else(|e| panic!("{}: error {e}", ctx(&call.name)));
+        let got = f64::from(f32::from_bits(*bits));
+        let ok = if expected == "observe_marginal" {
+            (got - f64::from(want)).abs() <= TOL
+        } else {
+            close(got, f64::from(want))
+        };
+        assert!(ok, "{}: step {i}: {got} vs host {want}", ctx(&call.name));
+    }
+    let demo = root().join("generated/demo");
+    let inputs_ = Builder::new(demo.join("model.json"), demo.join(map_file(&m.name)))
+        .seed(0)
+        .count(5)
+        .load()
+        .unwrap();
+    let inst = Instance::build(&inputs_.model, &inputs_.map, inputs_.decompositions).unwrap();
+    let mut ev = Evaluator::new(&inst.spn).unwrap();
+    let evidence = Evidence::from_rows(
+        host.evidence
+            .iter()
+            .map(|r| r.iter().map(|&x| f64::from(x)).collect())
+            .collect(),
+    );
+    let want = ev.marginals(&vec![None; m.places], &evidence).unwrap();
+    for (p, row) in m.state_marginals.iter().enumerate() {
+        for (k, &bits) in row.iter().enumerate() {
+            let got = f64::from(f32::from_bits(bits));
+            assert!(
+                (got - want.probs[p][k]).abs() <= TOL
+                    && (got - f64::from(host.marginals[p][k])).abs() <= TOL,
+                "{}: place {p} class {k}: {got} vs interpreter {} and host {}",
+                ctx("final marginals"),
+                want.probs[p][k],
+                host.marginals[p][k]
+            );
+        }
+    }
+}
+
+/// Median instructions of the steps of kind `name`.
+fn median_instructions(m: &MapReport, name: &str) -> u64 {
+    let mut n: Vec<u64> = m
+        .stream
+        .iter()
+        .filter(|(c, _)| c.name == name)
+        .map(|(c, _)| c.instructions)
+        .collect();
+    n.sort_unstable();
+    n[n.len() / 2]
 }
 
 #[test]
@@ -531,6 +690,10 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         host_answers!(demo_floor, 0),
         host_answers!(saarbrucken_seq2_night1, 1),
     ];
+    let streams = [
+        host_stream!(demo_floor, 0),
+        host_stream!(saarbrucken_seq2_night1, 1),
+    ];
     let bounds = [
         stack_bounds(map_file("demo_floor")),
         stack_bounds(map_file("saarbrucken_seq2_night1")),
@@ -555,7 +718,20 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
                 "{target} {}: {differ} of {numbers} numbers differ in bits from the x86-64-v3 host build (FMA)",
                 m.name
             );
-            for (call, &bound) in m.calls.iter().zip(&bounds[i]) {
+            check_stream(target, m, &streams[i]);
+            let full = m.calls[1].instructions;
+            let (all, one) = (
+                median_instructions(m, "observe_marginals"),
+                median_instructions(m, "observe_marginal"),
+            );
+            eprintln!(
+                "{target} {}: streaming step (median) observe + marginals {all} instructions ({:.1}x fewer than stateless marginals, {full}), observe + marginal(place) {one} ({:.1}x)",
+                m.name,
+                full as f64 / all as f64,
+                full as f64 / one as f64
+            );
+            let stream = m.stream.iter().map(|(c, _)| (c, bounds[i][4]));
+            for (call, bound) in m.calls.iter().zip(bounds[i]).chain(stream) {
                 eprintln!(
                     "{target} {} {}: {} instructions, {} bytes of stack (bound {bound})",
                     m.name, call.name, call.instructions, call.stack
@@ -643,7 +819,10 @@ fn report_parser_reads_every_record() {
     let text = "firmware x\ncalibration loop_instructions=8 measured=9 overhead=1\nram static=100\n\
                 map m places=2 classes=2\ncall log_likelihood instructions=5 stack=64 value=3f800000\n\
                 call mpe instructions=6 stack=32 error=ZeroLikelihood\n\
-                marginals 0 3f000000 3f000000\nmarginals 1 3f800000 00000000\nmpe 1 0\ndone\n";
+                marginals 0 3f000000 3f000000\nmarginals 1 3f800000 00000000\nmpe 1 0\n\
+                stream set_all instructions=7 stack=16 value=3f800000\n\
+                step 0 observe_marginals place=1 instructions=3 stack=8 value=3f000000\n\
+                state_marginals 0 3f800000 00000000\nstate_marginals 1 3f000000 3f000000\ndone\n";
     let r = parse(text);
     assert_eq!(r.calibration, (8, 9, 1));
     assert_eq!(r.static_ram, 100);
@@ -653,4 +832,12 @@ fn report_parser_reads_every_record() {
     assert_eq!(m.calls[1].value, Err("ZeroLikelihood".into()));
     assert_eq!(m.marginals[1], [0x3f80_0000, 0]);
     assert_eq!(m.mpe, [1, 0]);
+    assert_eq!(m.stream.len(), 2);
+    assert_eq!(
+        (m.stream[0].0.name.as_str(), m.stream[0].1),
+        ("set_all", None)
+    );
+    assert_eq!(m.stream[1].0.name, "observe_marginals");
+    assert_eq!((m.stream[1].0.instructions, m.stream[1].1), (3, Some(1)));
+    assert_eq!(m.state_marginals[1], [0x3f00_0000, 0x3f00_0000]);
 }

@@ -3,8 +3,8 @@
 //!
 //! Each map gets a zero-sized type implementing [`Compiled`], whose entry points take
 //! no arguments and work on the map's buffers in `.bss` (evidence, labels,
-//! marginals, MPE labels), so the firmware can time them and measure their stack
-//! uniformly.
+//! marginals, MPE labels, the streaming `State`), so the firmware can time them and
+//! measure their stack uniformly.
 
 use graphspn_firmware_maps::{demo_floor, saarbrucken_seq2_night1};
 use graphspn_runtime::EvidenceError;
@@ -25,6 +25,10 @@ pub struct Views<'a> {
     pub marginals: &'a mut [f32],
     /// Labelling written by `mpe`.
     pub mpe: &'a mut [u16],
+    /// The observation the next streaming step fuses in (`NUM_CLASSES` values).
+    pub step_row: &'a mut [f32],
+    /// The place of the next streaming step.
+    pub step_place: &'a mut usize,
 }
 
 /// One compiled map as the firmware uses it.
@@ -48,6 +52,17 @@ pub trait Compiled {
     fn mpe() -> CallResult;
     /// `labelled_log_likelihood(&labels, evidence)`.
     fn labelled_log_likelihood() -> CallResult;
+    /// `state.set_all(evidence)` and `state.log_likelihood()`: fills the streaming
+    /// state (every component evaluated once).
+    fn state_set_all() -> CallResult;
+    /// One streaming step: `state.observe(step_place, &step_row)` and
+    /// `state.marginals(&mut marginals)` (returns the log-likelihood).
+    fn observe_marginals() -> CallResult;
+    /// One streaming step for one place: `state.observe(step_place, &step_row)` and
+    /// `state.marginal(step_place, ..)` (returns the place's marginal of class 0).
+    fn observe_marginal() -> CallResult;
+    /// `state.marginals(&mut marginals)` without a new observation.
+    fn state_marginals() -> CallResult;
 }
 
 /// Implements [`Compiled`] for module `$m` as type `$ty`, with its buffers in a
@@ -64,6 +79,10 @@ macro_rules! compiled {
             labels: $m::Labels,
             marginals: $m::Marginals,
             mpe: $m::Labels,
+            state: $m::State,
+            step_row: [f32; $m::NUM_CLASSES],
+            step_place: usize,
+            one: [f32; $m::NUM_CLASSES],
         }
 
         static mut BUFFERS_OF_MAP: $buf = $buf {
@@ -71,6 +90,10 @@ macro_rules! compiled {
             labels: [0; $m::NUM_PLACES],
             marginals: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
             mpe: [0; $m::NUM_PLACES],
+            state: $m::State::new(),
+            step_row: [1.0; $m::NUM_CLASSES],
+            step_place: 0,
+            one: [0.0; $m::NUM_CLASSES],
         };
 
         impl $ty {
@@ -94,6 +117,8 @@ macro_rules! compiled {
                     labels: &mut b.labels,
                     marginals: b.marginals.as_flattened_mut(),
                     mpe: &mut b.mpe,
+                    step_row: &mut b.step_row,
+                    step_place: &mut b.step_place,
                 })
             }
             #[inline(never)]
@@ -115,6 +140,29 @@ macro_rules! compiled {
             fn labelled_log_likelihood() -> CallResult {
                 let b = Self::buffers();
                 $m::labelled_log_likelihood(&b.labels, &b.evidence)
+            }
+            #[inline(never)]
+            fn state_set_all() -> CallResult {
+                let b = Self::buffers();
+                b.state.set_all(&b.evidence)?;
+                b.state.log_likelihood()
+            }
+            #[inline(never)]
+            fn observe_marginals() -> CallResult {
+                let b = Self::buffers();
+                b.state.observe(b.step_place, &b.step_row)?;
+                b.state.marginals(&mut b.marginals)
+            }
+            #[inline(never)]
+            fn observe_marginal() -> CallResult {
+                let b = Self::buffers();
+                b.state.observe(b.step_place, &b.step_row)?;
+                b.state.marginal(b.step_place, &mut b.one)?;
+                Ok(b.one[0])
+            }
+            fn state_marginals() -> CallResult {
+                let b = Self::buffers();
+                b.state.marginals(&mut b.marginals)
             }
         }
     };

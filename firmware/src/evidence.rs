@@ -48,3 +48,20 @@ pub fn fill(seed: u64, classes: usize, rows: &mut [f32], labels: &mut [u16], unk
         };
     }
 }
+
+/// Number of streaming steps the firmware runs per map (after its four stateless
+/// calls): even steps time `observe` + `marginals`, odd steps `observe` +
+/// `marginal(place)`.
+pub const STEPS: u64 = 16;
+
+/// The observation of streaming step `index` of the map with evidence seed `seed`:
+/// writes a row of likelihoods in `(0, 1]` into `row` and returns the place it is
+/// for (uniform over `places`).
+pub fn step(seed: u64, index: u64, places: usize, row: &mut [f32]) -> usize {
+    let mut rng = SplitMix64(seed ^ (index + 1).wrapping_mul(0xD1B5_4A32_D192_ED03));
+    let place = (rng.next_u64() % places as u64) as usize;
+    for v in row.iter_mut() {
+        *v = rng.unit_f32();
+    }
+    place
+}

@@ -20,6 +20,9 @@
 //! call <entry point> instructions=<n> stack=<bytes> value=<f32 bits, hex>|error=<e>
 //! marginals <place> <f32 bits, hex> ...
 //! mpe <label> ...
+//! stream set_all instructions=<n> stack=<bytes> value=<f32 bits, hex>|error=<e>
+//! step <i> <observe_marginals|observe_marginal> place=<p> instructions=<n> stack=<bytes> value=...
+//! state_marginals <place> <f32 bits, hex> ...
 //! done
 //! ```
 #![cfg_attr(target_os = "none", no_std, no_main)]
@@ -93,29 +96,66 @@ fn run_map<M: Compiled>(out: &mut impl Write, seed: u64) -> core::fmt::Result {
         ("labelled_log_likelihood", M::labelled_log_likelihood),
     ];
     for (name, f) in calls {
-        let m = platform::measure(f);
-        write!(
-            out,
-            "call {name} instructions={} stack={} ",
-            m.instructions, m.stack
-        )?;
-        match m.result {
-            Ok(v) => writeln!(out, "value={:08x}", v.to_bits())?,
-            Err(e) => writeln!(out, "error={e:?}")?,
-        }
+        write!(out, "call {name} ")?;
+        measured(out, f)?;
     }
     M::with_views(|v| {
-        for (p, row) in v.marginals.chunks(M::CLASSES).enumerate() {
-            write!(out, "marginals {p}")?;
-            for x in row {
-                write!(out, " {:08x}", x.to_bits())?;
-            }
-            writeln!(out)?;
-        }
+        rows(out, "marginals", v.marginals, M::CLASSES)?;
         write!(out, "mpe")?;
         for l in v.mpe.iter() {
             write!(out, " {l}")?;
         }
         writeln!(out)
-    })
+    })?;
+    stream::<M>(out, seed)
+}
+
+/// The streaming state on the same evidence: `set_all`, then [`evidence::STEPS`]
+/// observations (alternately followed by `marginals` of all places and by
+/// `marginal` of the observed place), then the state's marginals of every place.
+fn stream<M: Compiled>(out: &mut impl Write, seed: u64) -> core::fmt::Result {
+    write!(out, "stream set_all ")?;
+    measured(out, M::state_set_all)?;
+    for i in 0..evidence::STEPS {
+        let place = M::with_views(|v| {
+            let p = evidence::step(seed, i, M::PLACES, v.step_row);
+            *v.step_place = p;
+            p
+        });
+        let (kind, f): (&str, fn() -> CallResult) = if i % 2 == 0 {
+            ("observe_marginals", M::observe_marginals)
+        } else {
+            ("observe_marginal", M::observe_marginal)
+        };
+        write!(out, "step {i} {kind} place={place} ")?;
+        measured(out, f)?;
+    }
+    // The final state's marginals (not timed).
+    match M::state_marginals() {
+        Ok(_) => M::with_views(|v| rows(out, "state_marginals", v.marginals, M::CLASSES)),
+        Err(e) => writeln!(out, "state_marginals error={e:?}"),
+    }
+}
+
+/// Runs `f`, writes `instructions=<n> stack=<bytes> value=<bits>|error=<e>` and a
+/// line end.
+fn measured(out: &mut impl Write, f: fn() -> CallResult) -> core::fmt::Result {
+    let m = platform::measure(f);
+    write!(out, "instructions={} stack={} ", m.instructions, m.stack)?;
+    match m.result {
+        Ok(v) => writeln!(out, "value={:08x}", v.to_bits()),
+        Err(e) => writeln!(out, "error={e:?}"),
+    }
+}
+
+/// Writes one `<tag> <place> <f32 bits>...` line per place of `values`.
+fn rows(out: &mut impl Write, tag: &str, values: &[f32], classes: usize) -> core::fmt::Result {
+    for (p, row) in values.chunks(classes).enumerate() {
+        write!(out, "{tag} {p}")?;
+        for x in row {
+            write!(out, " {:08x}", x.to_bits())?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
 }

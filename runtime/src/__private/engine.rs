@@ -185,24 +185,54 @@ fn scaled_row<T: Real, const C: usize>(row: &[T; C], label: u16) -> [T; C] {
     x
 }
 
-/// The scaled rows of one group's components, lane `l` holding component `p[l]`.
+/// The scaled rows of one group's components, lane `l` holding component `p[l]`
+/// (`labels`: one-hot rows for labelled places; `None`: no place is labelled).
+///
+/// Each row's scale is computed once per lane and variable; every vector is then
+/// built from its `L` lane values in one step (no per-lane insertion).
 #[inline]
 pub fn gather<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
     e: &[[W::Scalar; C]; N],
-    labels: &[u16; N],
+    labels: Option<&[u16; N]>,
     p: &[[u16; NV]; L],
 ) -> [[W; C]; NV] {
-    let mut x = [[W::ZERO; C]; NV];
+    /// A lane's source for one variable: the place's row and its scale's inverse, a
+    /// one-hot label, or nothing (a place out of range: zeros).
+    #[derive(Clone, Copy)]
+    enum Src<'a, T, const C: usize> {
+        Row(&'a [T; C], T),
+        Label(usize),
+        Zero,
+    }
+    let mut src = [[Src::<W::Scalar, C>::Zero; L]; NV];
     for (l, pl) in p.iter().enumerate() {
-        for (xv, &q) in x.iter_mut().zip(pl) {
+        for (sv, &q) in src.iter_mut().zip(pl) {
             let q = usize::from(q);
-            let (Some(row), Some(&lab)) = (e.get(q), labels.get(q)) else {
+            let lab = labels
+                .and_then(|ls| ls.get(q))
+                .map_or(usize::MAX, |&x| usize::from(x));
+            let (Some(row), Some(o)) = (e.get(q), sv.get_mut(l)) else {
                 continue;
             };
-            let r = scaled_row(row, lab);
-            for (xc, &v) in xv.iter_mut().zip(&r) {
-                xc.set_lane(l, v);
+            *o = if lab < C {
+                Src::Label(lab)
+            } else {
+                Src::Row(row, W::Scalar::ONE / row_scale(row, u16::MAX))
+            };
+        }
+    }
+    let mut x = [[W::ZERO; C]; NV];
+    for (xv, sv) in x.iter_mut().zip(&src) {
+        for (c, xc) in xv.iter_mut().enumerate() {
+            let mut a = [W::Scalar::ZERO; L];
+            for (o, s) in a.iter_mut().zip(sv) {
+                *o = match *s {
+                    Src::Row(row, inv) => row.get(c).map_or(W::Scalar::ZERO, |&v| v * inv),
+                    Src::Label(k) if k == c => W::Scalar::ONE,
+                    _ => W::Scalar::ZERO,
+                };
             }
+            *xc = W::from_lanes(&a);
         }
     }
     x
@@ -241,12 +271,11 @@ pub fn value_pass<
     acc: &mut [Acc<W::Scalar>; D],
 ) {
     for (g, p) in t.places.iter().enumerate() {
-        let x = gather::<W, L, NV, C, N>(e, labels, p);
+        let x = gather::<W, L, NV, C, N>(e, Some(labels), p);
         let v = if max { (t.max)(&x) } else { (t.fwd)(&x) };
-        for l in 0..L {
-            if let Some(&mask) = t.decs.get(g * L + l) {
-                accumulate(acc, mask, v.lane(l), t.log);
-            }
+        let masks = t.decs.get(g * L..).unwrap_or(&[]);
+        for (&mask, &vl) in masks.iter().zip(&v.to_lanes::<L>()) {
+            accumulate(acc, mask, vl, t.log);
         }
     }
 }
@@ -277,6 +306,30 @@ fn weight<T: Real, const D: usize>(w: &[T; D], mask: u64) -> T {
     s
 }
 
+/// Value and local posteriors of group `p` of a template on evidence `e` (no
+/// labels): `(values per lane, posterior vectors [variable][class])`.
+#[inline(always)]
+fn post_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    p: &[[u16; NV]; L],
+) -> ([W::Scalar; L], [[W; C]; NV]) {
+    let x = gather::<W, L, NV, C, N>(e, None, p);
+    let mut post = [[W::ZERO; C]; NV];
+    let v = (t.post)(&x, &mut post);
+    (v.to_lanes::<L>(), post)
+}
+
+/// One variable's posterior vectors as `[class][lane]` scalars.
+#[inline(always)]
+fn class_lanes<W: Lanes, const L: usize, const C: usize>(pv: &[W; C]) -> [[W::Scalar; L]; C] {
+    let mut out = [[W::Scalar::ZERO; L]; C];
+    for (o, &v) in out.iter_mut().zip(pv) {
+        *o = v.to_lanes::<L>();
+    }
+    out
+}
+
 /// Posterior pass of the stateless marginals: evaluates every component with its
 /// local posteriors and adds them, weighted by its decompositions' posterior weights
 /// `w`, into `out`.
@@ -294,21 +347,21 @@ pub fn posterior_pass<
     w: &[W::Scalar; D],
     out: &mut [[W::Scalar; C]; N],
 ) {
-    let none = [u16::MAX; N];
     for (g, p) in t.places.iter().enumerate() {
-        let x = gather::<W, L, NV, C, N>(e, &none, p);
-        let mut post = [[W::ZERO; C]; NV];
-        (t.post)(&x, &mut post);
-        for (l, pl) in p.iter().enumerate() {
-            let Some(&mask) = t.decs.get(g * L + l) else {
-                continue;
-            };
-            let wl = weight(w, mask);
-            for (pv, &q) in post.iter().zip(pl) {
-                if let Some(o) = out.get_mut(usize::from(q)) {
-                    for (oc, pc) in o.iter_mut().zip(pv) {
-                        *oc += wl * pc.lane(l);
-                    }
+        let (_, post) = post_group(t, e, p);
+        let masks = t.decs.get(g * L..).unwrap_or(&[]);
+        let mut wl = [W::Scalar::ZERO; L];
+        for (o, &mask) in wl.iter_mut().zip(masks) {
+            *o = weight(w, mask);
+        }
+        for (i, pv) in post.iter().enumerate() {
+            let pv = class_lanes::<W, L, C>(pv);
+            for (l, (pl, &wl)) in p.iter().zip(&wl).enumerate().take(masks.len()) {
+                let Some(o) = pl.get(i).and_then(|&q| out.get_mut(usize::from(q))) else {
+                    continue;
+                };
+                for (oc, pc) in o.iter_mut().zip(&pv) {
+                    *oc += wl * pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
                 }
             }
         }
@@ -355,22 +408,20 @@ pub fn eval_group<W: Lanes, const L: usize, const NV: usize, const C: usize, con
     let Some(p) = t.places.get(g) else {
         return;
     };
-    let none = [u16::MAX; N];
-    let x = gather::<W, L, NV, C, N>(e, &none, p);
-    let mut pw = [[W::ZERO; C]; NV];
-    let v = (t.post)(&x, &mut pw);
-    for l in 0..L {
-        let u = g * L + l;
-        if u >= t.decs.len() {
-            break;
+    let (v, pw) = post_group(t, e, p);
+    let first = g * L;
+    let real = t.decs.len().saturating_sub(first).min(L);
+    for (l, &vl) in v.iter().enumerate().take(real) {
+        if let Some(o) = val.get_mut(first + l) {
+            *o = vl;
         }
-        if let Some(o) = val.get_mut(u) {
-            *o = v.lane(l);
-        }
-        for (i, pv) in pw.iter().enumerate() {
-            if let Some(o) = post.get_mut(u * NV + i) {
-                for (oc, pc) in o.iter_mut().zip(pv) {
-                    *oc = pc.lane(l);
+    }
+    for (i, pv) in pw.iter().enumerate() {
+        let pv = class_lanes::<W, L, C>(pv);
+        for l in 0..real {
+            if let Some(o) = post.get_mut((first + l) * NV + i) {
+                for (oc, pc) in o.iter_mut().zip(&pv) {
+                    *oc = pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
                 }
             }
         }

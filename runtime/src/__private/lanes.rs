@@ -53,6 +53,11 @@ pub trait Lanes:
     fn lane(self, l: usize) -> Self::Scalar;
     /// Sets lane `l` to `v` (no effect when out of range).
     fn set_lane(&mut self, l: usize, v: Self::Scalar);
+    /// The vector whose lane `l` is `a[l]` (lanes past `L` are `0`, entries past the
+    /// vector's width ignored).
+    fn from_lanes<const L: usize>(a: &[Self::Scalar; L]) -> Self;
+    /// The first `L` lanes as an array (`0` past the vector's width).
+    fn to_lanes<const L: usize>(self) -> [Self::Scalar; L];
     /// Sum of the lanes of every vector of `v`, lane by lane: `Σ_i v[i]`.
     #[inline(always)]
     fn sum<const K: usize>(v: &[Self; K]) -> Self {
@@ -108,6 +113,22 @@ macro_rules! lanes_impl {
                 }
                 *self = $v::from(a);
             }
+            #[inline(always)]
+            fn from_lanes<const L: usize>(a: &[$t; L]) -> Self {
+                let mut b = $v::ZERO.to_array();
+                for (o, &v) in b.iter_mut().zip(a) {
+                    *o = v;
+                }
+                $v::from(b)
+            }
+            #[inline(always)]
+            fn to_lanes<const L: usize>(self) -> [$t; L] {
+                let mut b = [0.0; L];
+                for (o, &v) in b.iter_mut().zip(&self.to_array()) {
+                    *o = v;
+                }
+                b
+            }
         }
     };
 }
@@ -151,6 +172,18 @@ macro_rules! scalar_lanes {
                 if l == 0 {
                     *self = v;
                 }
+            }
+            #[inline(always)]
+            fn from_lanes<const L: usize>(a: &[$t; L]) -> Self {
+                a.first().copied().unwrap_or(0.0)
+            }
+            #[inline(always)]
+            fn to_lanes<const L: usize>(self) -> [$t; L] {
+                let mut b = [0.0; L];
+                if let Some(o) = b.first_mut() {
+                    *o = self;
+                }
+                b
             }
         }
     };
