@@ -52,7 +52,8 @@ for p in "${PROFILES[@]}"; do
                 if ($4 ~ /^graphspn_firmware::calls::/) {
                     name = ($4 ~ /saarbrucken/) ? "saarbrucken_seq2_night1" : "demo_floor"
                 }
-                if ($3 ~ /^[bB]$/) ram[name] += $2 + 0
+                # The firmware'"'"'s buffers (a State starts with rows of ones: .data).
+                if ($3 ~ /^[bB]$/ || ($3 ~ /^[dD]$/ && $4 ~ /^graphspn_firmware::calls::/)) ram[name] += $2 + 0
                 else if ($4 ~ /^graphspn_firmware_maps::/) flash[name] += $2 + 0
             }
             END { for (m in flash) print m, flash[m], ram[m] + 0 }' >>"$out/$t.$p.size"
@@ -81,7 +82,7 @@ for map in demo_floor saarbrucken_seq2_night1; do
                         for (j = i - 1; j >= 1 && a[j] > x; j--) a[j + 1] = a[j]
                         a[j + 1] = x
                     }
-                    return a[int((n + 1) / 2)]
+                    return a[int(n / 2) + 1]
                 }
                 $1 == "map" { on = ($2 == map) }
                 on && $1 == "call" {
