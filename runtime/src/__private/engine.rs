@@ -147,15 +147,16 @@ pub fn best<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<usize> {
     best
 }
 
-/// `Σ_p ln s_p`, where `s_p` is the largest value of row `p`, or the value of its
-/// label when labelled (`label < C`); `-inf` when some `s_p = 0`.
+/// `ln Π_p s_p`, where `s_p` is the largest value of row `p`, or the value of its
+/// label when labelled (`label < C`); `-inf` when some `s_p = 0`. The product keeps
+/// an exact power-of-two exponent (one rounding per place, one `ln` in all).
 #[inline]
 pub fn log_scale<T: Real, const N: usize, const C: usize>(e: &[[T; C]; N], labels: &[u16; N]) -> T {
-    let mut acc = T::ZERO;
+    let mut acc = Acc::ONE;
     for (row, &l) in e.iter().zip(labels) {
-        acc += row_scale(row, l).ln();
+        acc.mul(row_scale(row, l));
     }
-    acc
+    acc.ln()
 }
 
 /// The largest value of `row`, or the value of `label` when `label < C`.
