@@ -63,6 +63,28 @@ where
     };
     let (n, c) = (M::NUM_PLACES, M::NUM_CLASSES);
     let mut rng = SplitMix(seed);
+    // A new state (all zeros in memory) reads as rows of ones, and an update as its
+    // very first call agrees with the stateless functions.
+    let one = M::Scalar::from_f64(1.0);
+    assert!(M::state_evidence(&M::NEW_STATE).iter().all(|r| r.as_ref().iter().all(|&x| x == one)), "{name}: a new state's rows are not all ones");
+    {
+        let mut t = M::NEW_STATE;
+        let mut first = M::ZERO_ROW;
+        for k in 0..c { first.as_mut()[k] = M::Scalar::from_f64(0.05 + rng.unit()); }
+        let p = rng.below(n);
+        M::observe(&mut t, p, &first).expect("first observe");
+        let ll: f64 = M::state_log_likelihood(&mut t).expect("state ll").into();
+        let ev: Vec<M::Row> = M::state_evidence(&t).to_vec();
+        let m = first.as_ref().iter().map(|&x| Into::<f64>::into(x)).fold(0.0, f64::max);
+        for (q, r) in ev.iter().enumerate() {
+            for (k, &a) in r.as_ref().iter().enumerate() {
+                let want = if q == p { Into::<f64>::into(first.as_ref()[k]) / m } else { 1.0 };
+                assert!((Into::<f64>::into(a) - want).abs() <= 1e-6, "{name}: first observe: place {q} class {k}: {} vs {want}", Into::<f64>::into(a));
+            }
+        }
+        let sl: f64 = M::log_likelihood(&ev).expect("stateless ll").into();
+        assert!(close(ll, sl, tol), "{name}: first observe on a new state: {ll} vs stateless {sl}");
+    }
     let mut s = M::NEW_STATE;
     let mut marg = vec![M::ZERO_ROW; n];
     let mut full = vec![M::ZERO_ROW; n];

@@ -349,6 +349,24 @@ fn run_qemu(target: &str, profile: &str) -> Report {
     ))
 }
 
+/// Size in bytes of section `name` of ELF `elf` (`size -A` from binutils; 0 when
+/// the section is absent).
+fn section_bytes(elf: &std::path::Path, name: &str) -> u64 {
+    let out = Command::new("size")
+        .arg("-A")
+        .arg(elf)
+        .output()
+        .expect("running `size` (binutils)");
+    assert!(out.status.success(), "size -A {}", elf.display());
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .find_map(|l| {
+            let mut w = l.split_whitespace();
+            (w.next() == Some(name)).then(|| w.next()?.parse().ok())?
+        })
+        .unwrap_or(0)
+}
+
 /// Answers of the in-process host build (`graphspn-generated`) of one map.
 struct HostAnswers {
     values: [Result<f32, String>; 4],
@@ -682,6 +700,13 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         Command::new(elf(HOST, "release")),
         "host baseline firmware",
     ));
+    for target in [THUMB, RISCV] {
+        let data = section_bytes(&elf(target, "release"), ".data");
+        assert!(
+            data <= 1024,
+            "{target}: {data} bytes of .data: the firmware's states and buffers (all zero at start) belong in .bss"
+        );
+    }
     let reports = [
         (THUMB, run_qemu(THUMB, "release")),
         (RISCV, run_qemu(RISCV, "release")),

@@ -91,7 +91,7 @@ macro_rules! compiled {
             marginals: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
             mpe: [0; $m::NUM_PLACES],
             state: $m::State::new(),
-            step_row: [1.0; $m::NUM_CLASSES],
+            step_row: [0.0; $m::NUM_CLASSES],
             step_place: 0,
             one: [0.0; $m::NUM_CLASSES],
         };

@@ -642,7 +642,9 @@ pub fn mpe(e: &Evidence, labels: &mut Labels) -> Result<{t}, ::graphspn_runtime:
 /// [`MACS_OBSERVE_MARGINALS`] multiply-adds with `marginals`; `log_likelihood` and
 /// `marginal` O(1) and O(D·C); `marginals` O(components·places·C); `mpe` and
 /// `labelled_log_likelihood` a full stateless pass on the state's evidence. The first
-/// call after [`State::new`] evaluates every component once.
+/// call after [`State::new`] evaluates every component once. [`State::new`] is all
+/// zeros, so a `static` state is placed in `.bss` (no initial image in flash).
+/// No evidence at a place means a row of ones.
 #[derive(Clone)]
 pub struct State {{
     ev: Evidence,
@@ -652,8 +654,11 @@ pub struct State {{
     w: [{t}; NUM_DECOMPOSITIONS],
     lhat: {t},
     ok: bool,
-    stale: bool,
+    ready: bool,
 }}
+
+/// The rows of a state without any evidence.
+const NO_EVIDENCE: Evidence = [[1.0; NUM_CLASSES]; NUM_PLACES];
 
 impl Default for State {{
     fn default() -> Self {{
@@ -662,23 +667,24 @@ impl Default for State {{
 }}
 
 impl State {{
-    /// A state with no evidence at any place (every row all ones).
+    /// A state with no evidence at any place (all zeros in memory: rows of ones are
+    /// written by the first call that needs them).
     pub const fn new() -> State {{
         State {{
-            ev: [[1.0; NUM_CLASSES]; NUM_PLACES],
+            ev: [[0.0; NUM_CLASSES]; NUM_PLACES],
             lns: [0.0; NUM_PLACES],
             val: [0.0; NUM_COMPONENTS],
             post: [[0.0; NUM_CLASSES]; NUM_ROWS],
             w: [0.0; NUM_DECOMPOSITIONS],
             lhat: 0.0,
             ok: false,
-            stale: true,
+            ready: false,
         }}
     }}
 
     /// The current evidence rows (all ones where a place has none).
     pub fn evidence(&self) -> &Evidence {{
-        &self.ev
+        if self.ready {{ &self.ev }} else {{ &NO_EVIDENCE }}
     }}
 
     {eval_fns}
@@ -701,28 +707,28 @@ impl State {{
         }}
     }}
 
-    /// Evaluates every component (after `new` or `set_all`).
+    /// Evaluates every component (after `set_all`, or on the first use of a new state).
     fn refresh(&mut self) {{
         {refresh_calls}
         self.remix();
-        self.stale = false;
+        self.ready = true;
     }}
 
+    /// A new state gets its rows of ones and every component evaluated.
     fn fresh(&mut self) {{
-        if self.stale {{
+        if !self.ready {{
+            self.ev = NO_EVIDENCE;
+            self.lns = [0.0; NUM_PLACES];
             self.refresh();
         }}
     }}
 
     /// Stores `row` for `place` and re-evaluates the components containing it.
     fn store(&mut self, place: usize, row: [{t}; NUM_CLASSES], ln_scale: {t}) {{
+        self.fresh();
         if let (Some(r), Some(s)) = (self.ev.get_mut(place), self.lns.get_mut(place)) {{
             *r = row;
             *s = ln_scale;
-        }}
-        if self.stale {{
-            self.refresh();
-            return;
         }}
         if let Some(units) = PLACE_UNITS.get(place) {{
             for &u in units {{
@@ -753,6 +759,7 @@ impl State {{
     pub fn observe(&mut self, place: usize, row: &[{t}; NUM_CLASSES]) -> Result<(), ::graphspn_runtime::EvidenceError> {{
         let id = Self::place_index(place)?;
         {P}check_row(row, place, id)?;
+        self.fresh();
         let old = match self.ev.get(place) {{
             Some(r) => *r,
             None => [1.0; NUM_CLASSES],
@@ -818,14 +825,14 @@ impl State {{
 
     /// The MPE labelling of the current evidence (a full max-product pass).
     pub fn mpe(&mut self, labels: &mut Labels) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
-        mpe_unchecked(&self.ev, labels)
+        mpe_unchecked(self.evidence(), labels)
     }}
 
     /// The log-likelihood of the current evidence with labelled places restricted to
     /// their labels (a full value pass).
     pub fn labelled_log_likelihood(&mut self, labels: &Labels) -> Result<{t}, ::graphspn_runtime::EvidenceError> {{
         {P}check_labels(labels, NUM_CLASSES)?;
-        labelled_log_likelihood_unchecked(labels, &self.ev)
+        labelled_log_likelihood_unchecked(labels, self.evidence())
     }}
 }}
 
