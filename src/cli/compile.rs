@@ -144,7 +144,7 @@ pub fn run(args: CompileArgs) -> Result<()> {
     }
     write_files(&files)?;
     eprintln!(
-        "{} components, {} lane(s) per call; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}",
+        "{} components, {} lane(s) per call; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} lane group(s) on average",
         r.components,
         r.lanes,
         r.stack_log_likelihood,
@@ -156,7 +156,8 @@ pub fn run(args: CompileArgs) -> Result<()> {
         r.macs_log_likelihood,
         r.macs_marginals,
         r.macs_mpe,
-        r.macs_observe_marginals
+        r.macs_observe_marginals,
+        r.units_per_update
     );
     eprintln!(
         "wrote {}: {} places, {} classes, {} decompositions, {} bytes",

@@ -54,7 +54,7 @@ fn sanitize(name: &str) -> String {
 }
 
 /// What the generator knows about the generated code, beside its text.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct CodeReport {
     /// Components per call of kernel templates (`1` on targets without float SIMD).
     pub lanes: usize,
@@ -80,6 +80,9 @@ pub struct CodeReport {
     pub macs_mpe: usize,
     /// Worst-case multiply(-add)s of one state update (`observe`) plus `marginals`.
     pub macs_observe_marginals: usize,
+    /// Mean number of evaluation units (lane groups; single components in scalar
+    /// code) one state update re-evaluates, over the places.
+    pub units_per_update: f64,
 }
 
 /// One template as generated: its function prefix, lanes, numerics and counts.
@@ -140,9 +143,13 @@ pub fn module(
     let mut tpls: Vec<Tpl> = Vec::new();
     let mut fns = String::new();
     for (k, spn) in model.spns.iter().enumerate() {
-        let members: Vec<usize> = (0..uniques.len())
+        let mut members: Vec<usize> = (0..uniques.len())
             .filter(|&u| uniques[u].template == k)
             .collect();
+        // Lane groups of neighbouring components: the components of different
+        // decompositions that contain a place then tend to share a group, so a
+        // streaming update re-evaluates fewer groups.
+        members.sort_by_key(|&u| (uniques[u].places.iter().min().copied(), u));
         if members.is_empty() {
             continue;
         }
@@ -461,6 +468,7 @@ pub fn module(
         macs_marginals: macs_marg,
         macs_mpe,
         macs_observe_marginals: worst_update + u_total * 2 + rows * c,
+        units_per_update: place_units.iter().map(Vec::len).sum::<usize>() as f64 / n.max(1) as f64,
     };
     let worst = report
         .stack_marginals
