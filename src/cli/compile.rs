@@ -144,7 +144,7 @@ pub fn run(args: CompileArgs) -> Result<()> {
     }
     write_files(&files)?;
     eprintln!(
-        "{} components, {} lane(s) per call; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} lane group(s) on average",
+        "{} components, {} lane(s) per call; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} evaluation unit(s) (lane groups, or components in scalar code) on average",
         r.components,
         r.lanes,
         r.stack_log_likelihood,

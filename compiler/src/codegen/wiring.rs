@@ -418,7 +418,12 @@ pub fn module(
         )
     });
     // Report: stack, memory, multiply-adds.
-    let driver = |tp: &Tpl| 2 * tp.vars * c * tp.lanes * scalar + 512;
+    // Driver frame: the gathered inputs and the posteriors (`vars × classes` vectors
+    // each), the gather's per-lane row sources (a reference, a scale and a tag: 24
+    // bytes), one variable's posteriors as `classes × lanes` scalars, and 512 bytes.
+    let driver = |tp: &Tpl| {
+        2 * tp.vars * c * tp.lanes * scalar + tp.vars * tp.lanes * 24 + c * tp.lanes * scalar + 512
+    };
     let deepest = tpls
         .iter()
         .map(|tp| driver(tp) + tp.frame)
