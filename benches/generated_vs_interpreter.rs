@@ -2,7 +2,9 @@
 //! evidence, for `log_likelihood`, `marginals` and `mpe`, on the demo floor and on the
 //! largest COLD map (Saarbrücken seq2_night1, 230 places); prints the speed-up ratios
 //! measured in this run, and for marginals also against the interpreter's batched mode
-//! (`marginals_batch`, time per query).
+//! (`marginals_batch`, time per query). Also the streaming state: one `observe` plus
+//! `marginals` of all places (or `marginal` of one place) vs one stateless
+//! `marginals` call.
 //!
 //! `cargo bench --bench generated_vs_interpreter`
 
@@ -67,6 +69,16 @@ macro_rules! bench_map {
         group.bench_function("interpreter/mpe", |b| {
             b.iter(|| eval.mpe(&free, black_box(&ev)))
         });
+        let mut state = g::State::new();
+        state.set_all(&e).unwrap();
+        let mut step = 0usize;
+        group.bench_function("state/observe+marginals", |b| {
+            b.iter(|| {
+                step = (step + 1) % g::NUM_PLACES;
+                let _ = state.observe(step, black_box(&e[(step * 7) % g::NUM_PLACES]));
+                state.marginals(&mut out)
+            })
+        });
         group.finish();
         // Ratios from one timing pass each, same process.
         let time = |f: &mut dyn FnMut()| {
@@ -100,6 +112,25 @@ macro_rules! bench_map {
         let ip = time(&mut || {
             black_box(eval.mpe(&free, &ev).ok());
         });
+        let mut one = [0.0f32; g::NUM_CLASSES];
+        let so = time(&mut || {
+            step = (step + 1) % g::NUM_PLACES;
+            let _ = state.observe(step, black_box(&e[(step * 7) % g::NUM_PLACES]));
+            black_box(state.marginals(&mut out).ok());
+        });
+        let s1 = time(&mut || {
+            step = (step + 1) % g::NUM_PLACES;
+            let _ = state.observe(step, black_box(&e[(step * 7) % g::NUM_PLACES]));
+            black_box(state.marginal(step, &mut one).ok());
+        });
+        $ratios.push(format!(
+            "{name} streaming state ({} bytes): observe + marginals {:.2} µs ({:.1}x faster than stateless marginals), observe + marginal(place) {:.2} µs ({:.1}x)",
+            g::STATE_BYTES,
+            so * 1e6,
+            gm / so,
+            s1 * 1e6,
+            gm / s1
+        ));
         $ratios.push(format!(
             "{name} ({} places, {} instance edges): log_likelihood {:.1} µs vs {:.1} µs ({:.1}x), marginals {:.1} µs vs {:.1} µs ({:.1}x), mpe {:.1} µs vs {:.1} µs ({:.1}x); interpreter marginals batched by {BATCH}: {:.1} µs per query ({:.1}x)",
             g::NUM_PLACES,

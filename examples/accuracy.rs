@@ -3,10 +3,10 @@
 //! of the argmax of the instance GraphSPN's marginals with the argmax of the evidence
 //! alone.
 //!
-//! `GRAPHSPN_DATA=... cargo run --release --example accuracy [-- TEST_BUILDING [SEED]]`
+//! `cargo run --release --example accuracy [-- TEST_BUILDING [SEED]]` (reads the
+//! shipped COLD maps, or `$GRAPHSPN_DATA` when set)
 //! (default test building Stockholm, seed 0).
 
-use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -28,10 +28,7 @@ fn argmax(row: &[f64]) -> usize {
 }
 
 fn main() -> Result<()> {
-    let data = PathBuf::from(
-        std::env::var_os("GRAPHSPN_DATA")
-            .context("set GRAPHSPN_DATA to the COLD topomaps folder")?,
-    );
+    let data = graphspn::map::cold::data_dir(None);
     let mut args = std::env::args().skip(1);
     let test_building = args.next().unwrap_or_else(|| "Stockholm".into());
     let seed: u64 = match args.next() {

@@ -1,9 +1,11 @@
 //! A control-loop-style program that uses only a compiled map
 //! (`graphspn_generated::demo_floor`): a robot explores the demo office floor
 //! breadth-first from place 0, gets noisy evidence about each place it reaches, and
-//! after every step infers the marginals of all places, prints the accuracy of the
-//! best labelling against the ground truth, the most uncertain places and the
-//! inference latency (median and p99 over repeated calls).
+//! after every step fuses it into the map's streaming `State` (`observe`: only the
+//! components containing that place are re-evaluated), reads the marginals of all
+//! places from it, prints the accuracy of the best labelling against the ground
+//! truth, the most uncertain places and the per-step latency (median and p99 over
+//! repeated updates) next to what a full stateless recomputation costs.
 //!
 //! Everything lives in fixed-size arrays; a counting global allocator asserts that
 //! the control loop performs zero heap allocations.
@@ -16,7 +18,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use graphspn_generated::demo_floor::{
-    self, CLASS_NAMES, Evidence, Marginals, NUM_CLASSES, NUM_PLACES, PLACE_IDS,
+    self, CLASS_NAMES, Evidence, Marginals, NUM_CLASSES, NUM_PLACES, PLACE_IDS, State,
 };
 use graphspn_generated::demo_floor_truth::{EDGES, TRUTH};
 
@@ -45,8 +47,10 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-/// Timed repetitions of the inference call per step.
+/// Timed repetitions of the per-step update per step.
 const REPS: usize = 101;
+/// Timed repetitions of the full recomputation per step (for comparison).
+const FULL_REPS: usize = 11;
 /// Probability that the place-recognition "sensor" favours the true class.
 const SENSOR_ACCURACY: f32 = 0.7;
 
@@ -145,19 +149,39 @@ fn main() {
     );
     let _ = out.flush();
     let mut rng = SplitMix(2018);
-    // Unvisited places carry no information: uniform rows.
+    // Unvisited places carry no information: uniform rows (the state's start).
+    let mut state = State::new();
     let mut evidence: Evidence = [[1.0; NUM_CLASSES]; NUM_PLACES];
     let mut marginals: Marginals = [[0.0; NUM_CLASSES]; NUM_PLACES];
+    let mut full: Marginals = [[0.0; NUM_CLASSES]; NUM_PLACES];
     let mut lat = [0u32; REPS];
+    let mut full_lat = [0u32; FULL_REPS];
     let mut all_p50 = [0u32; NUM_PLACES];
+    let mut all_full = [0u32; NUM_PLACES];
     let before = ALLOCATIONS.load(Ordering::Relaxed);
     for (step, &place) in order.iter().enumerate() {
         let truth = TRUTH[place];
-        evidence[place] = sense(&mut rng, truth);
-        let mut ll = 0.0f32;
+        let row = sense(&mut rng, truth);
+        // The step: fuse the observation, read all marginals from the cache.
+        let mut ll = match state
+            .observe(place, &row)
+            .and_then(|()| state.marginals(&mut marginals))
+        {
+            Ok(v) => v,
+            Err(e) => {
+                let _ = writeln!(out, "step {step}: inference failed: {e}");
+                return;
+            }
+        };
+        evidence[place] = state.evidence()[place];
+        // Its latency: the same update (re-setting the fused row) and marginals.
         for l in lat.iter_mut() {
             let t = Instant::now();
-            ll = match demo_floor::marginals(&evidence, &mut marginals) {
+            let fused = state.evidence()[place];
+            ll = match state
+                .set_evidence(place, &fused)
+                .and_then(|()| state.marginals(&mut marginals))
+            {
                 Ok(v) => v,
                 Err(e) => {
                     let _ = writeln!(out, "step {step}: inference failed: {e}");
@@ -166,6 +190,14 @@ fn main() {
             };
             *l = t.elapsed().as_nanos() as u32;
         }
+        // What a full stateless recomputation of the same marginals costs.
+        for l in full_lat.iter_mut() {
+            let t = Instant::now();
+            let _ = demo_floor::marginals(&evidence, &mut full);
+            *l = t.elapsed().as_nanos() as u32;
+        }
+        full_lat.sort_unstable();
+        all_full[step] = full_lat[FULL_REPS / 2];
         lat.sort_unstable();
         let (p50, p99) = (lat[REPS / 2], lat[REPS * 99 / 100]);
         all_p50[step] = p50;
@@ -194,7 +226,7 @@ fn main() {
         let seen = argmax(&evidence[place]);
         let _ = writeln!(
             out,
-            "step {:>3} place {:>3} ({:>3} seen as {:>3}) ln S {:>8.2} | accuracy {:>5.1}% all, {:>5.1}% visited | uncertain {:>3} ({:.2}) {:>3} ({:.2}) {:>3} ({:.2}) | marginals p50 {:>6.1} µs p99 {:>6.1} µs",
+            "step {:>3} place {:>3} ({:>3} seen as {:>3}) ln S {:>8.2} | accuracy {:>5.1}% all, {:>5.1}% visited | uncertain {:>3} ({:.2}) {:>3} ({:.2}) {:>3} ({:.2}) | step p50 {:>6.1} µs p99 {:>6.1} µs (full pass {:>6.1} µs)",
             step,
             PLACE_IDS[place],
             if truth == demo_floor::UNKNOWN {
@@ -214,14 +246,21 @@ fn main() {
             uncertain[2].0,
             f64::from(p50) / 1e3,
             f64::from(p99) / 1e3,
+            f64::from(full_lat[FULL_REPS / 2]) / 1e3,
         );
     }
     let allocations = ALLOCATIONS.load(Ordering::Relaxed) - before;
     all_p50.sort_unstable();
+    all_full.sort_unstable();
+    let (step_us, full_us) = (
+        f64::from(all_p50[NUM_PLACES / 2]) / 1e3,
+        f64::from(all_full[NUM_PLACES / 2]) / 1e3,
+    );
     let _ = writeln!(
         out,
-        "control loop: {NUM_PLACES} steps x {REPS} inferences, median step latency {:.1} µs, heap allocations in the loop: {allocations}",
-        f64::from(all_p50[NUM_PLACES / 2]) / 1e3
+        "control loop: {NUM_PLACES} steps x {REPS} updates, median step (observe + marginals) {step_us:.1} µs vs {full_us:.1} µs for a full recomputation ({:.0}x), state {} bytes, heap allocations in the loop: {allocations}",
+        full_us / step_us.max(1e-3),
+        demo_floor::STATE_BYTES
     );
     assert_eq!(allocations, 0, "the control loop allocated");
 }

@@ -5,23 +5,15 @@
 //! (same inputs as `generated/build.rs`, f32 and f64) and scans it; another links it
 //! into a `no_std` binary whose panic handler calls an undefined symbol.
 
+mod no_panic_probe;
+
 use std::path::PathBuf;
-use std::process::Command;
 
 use graphspn::codegen::{Builder, Precision, is_generated_file};
+use no_panic_probe::demo_source;
 
 fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
-}
-
-/// The demo floor's module, generated with the inputs of `generated/build.rs`.
-fn demo_source(precision: Precision) -> String {
-    Builder::new(demo().join("model.json"), demo().join("floor.json"))
-        .seed(0)
-        .count(5)
-        .precision(precision)
-        .generate()
-        .unwrap()
 }
 
 #[test]
@@ -70,138 +62,10 @@ fn same_inputs_give_byte_identical_output() {
     assert_eq!(b.generate().unwrap(), b.clone().generate().unwrap());
 }
 
-/// A `#![no_std]`, `#![no_main]` binary without an allocator, linked with `panic =
-/// "abort"` and fat LTO, that calls every entry point of the generated demo module (f32
-/// and f64: checked, unchecked and through `CompiledMap`) on opaque inputs. Its panic
-/// handler calls a symbol that is defined nowhere, so the binary links only if the
-/// optimiser removed every path to a panic: this proves that the generated code and
-/// the runtime helpers it calls cannot panic, need neither `std` nor `alloc` (either
-/// would bring a second `panic_impl` or an allocator the binary lacks), and build
-/// for a bare-metal-style target.
+/// See [`no_panic_probe::link_check`]; the Cortex-M4F build of the same probe runs in
+/// `mcu_qemu.rs`.
 #[cfg(all(target_os = "linux", target_arch = "x86_64"))]
 #[test]
 fn generated_code_links_without_std_alloc_or_any_panic_path() {
-    let dir = tempfile::tempdir().unwrap();
-    for (module, precision) in [("m32", Precision::F32), ("m64", Precision::F64)] {
-        let src = demo_source(precision);
-        std::fs::create_dir_all(dir.path().join("src")).unwrap();
-        std::fs::write(dir.path().join(format!("src/{module}.rs")), src).unwrap();
-    }
-    let runtime = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("runtime");
-    std::fs::write(
-        dir.path().join("Cargo.toml"),
-        format!(
-            "[package]\nname = \"no_panic_probe\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\n\
-             [dependencies]\ngraphspn-runtime = {{ path = {:?} }}\n\n\
-             [profile.release]\npanic = \"abort\"\nlto = \"fat\"\ncodegen-units = 1\n\n\
-             [lints.rust]\nunexpected_cfgs = {{ level = \"warn\", check-cfg = [\"cfg(panic_control)\"] }}\n\n\
-             [workspace]\n",
-            runtime.display().to_string()
-        ),
-    )
-    .unwrap();
-    std::fs::write(dir.path().join("src/main.rs"), NO_PANIC_PROBE).unwrap();
-    let link = |extra_cfg: Option<&str>| {
-        let mut cmd = Command::new(env!("CARGO"));
-        cmd.args(["rustc", "--release", "--offline", "--quiet", "--"])
-            // No C start files (the probe has its own `_start`); libc only for the
-            // `memcpy`/`memset` that bare-metal targets get from `compiler_builtins`.
-            .args(["-C", "link-arg=-nostartfiles", "-C", "link-arg=-lc"])
-            .env(
-                "CARGO_TARGET_DIR",
-                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/no-panic-probe"),
-            )
-            .current_dir(dir.path());
-        if let Some(cfg) = extra_cfg {
-            cmd.args(["--cfg", cfg]);
-        }
-        cmd.output().unwrap()
-    };
-    // Control: a deliberate out-of-bounds index must make the link fail on the
-    // handler's symbol, or the probe proves nothing on this toolchain.
-    let control = link(Some("panic_control"));
-    let stderr = String::from_utf8_lossy(&control.stderr);
-    assert!(
-        !control.status.success() && stderr.contains(UNDEFINED_ON_PANIC),
-        "the control build with a panic path did not fail to link on {UNDEFINED_ON_PANIC}:\n{stderr}"
-    );
-    let probe = link(None);
-    let stderr = String::from_utf8_lossy(&probe.stderr);
-    assert!(
-        probe.status.success(),
-        "the generated code keeps a path to a panic, or needs std/alloc:\n{stderr}"
-    );
+    no_panic_probe::link_check(None);
 }
-
-/// The symbol the probe's panic handler calls; defined nowhere.
-const UNDEFINED_ON_PANIC: &str = "graphspn_generated_code_reaches_a_panic";
-
-/// `src/main.rs` of the probe binary (modules `m32`, `m64`: the demo floor in f32, f64).
-const NO_PANIC_PROBE: &str = r#"
-#![no_std]
-#![no_main]
-
-use core::hint::black_box;
-use graphspn_runtime::CompiledMap;
-
-#[cfg(not(panic_control))]
-mod m32 { include!("m32.rs"); }
-#[cfg(not(panic_control))]
-mod m64 { include!("m64.rs"); }
-
-unsafe extern "C" {
-    /// Defined nowhere: the binary links only if no path reaches the panic handler.
-    fn graphspn_generated_code_reaches_a_panic() -> !;
-}
-
-#[panic_handler]
-fn on_panic(_: &core::panic::PanicInfo) -> ! {
-    // SAFETY: never runs; the symbol does not exist, so a reachable call fails to link.
-    unsafe { graphspn_generated_code_reaches_a_panic() }
-}
-
-/// Calls every entry point on opaque inputs (the optimiser knows neither the values
-/// nor the slice lengths) and keeps every result alive.
-macro_rules! exercise {
-    ($m:ident) => {{
-        use $m::{Evidence, Labels, Marginals, NUM_CLASSES, NUM_PLACES};
-        static EVIDENCE: Evidence = [[0.5; NUM_CLASSES]; NUM_PLACES];
-        static LABELS: Labels = [$m::UNKNOWN; NUM_PLACES];
-        let e: &Evidence = black_box(&EVIDENCE);
-        let mut labels: Labels = *black_box(&LABELS);
-        let mut out: Marginals = [[0.0; NUM_CLASSES]; NUM_PLACES];
-        let _ = black_box($m::log_likelihood(e));
-        let _ = black_box($m::log_likelihood_unchecked(e));
-        let _ = black_box($m::marginals(e, &mut out));
-        let _ = black_box($m::marginals_unchecked(e, &mut out));
-        let _ = black_box($m::mpe(e, &mut labels));
-        let _ = black_box($m::mpe_unchecked(e, &mut labels));
-        let _ = black_box($m::labelled_log_likelihood(&labels, e));
-        let _ = black_box($m::labelled_log_likelihood_unchecked(&labels, e));
-        let n = black_box(NUM_PLACES);
-        let es = e.get(..n).unwrap_or(&[]);
-        let _ = black_box(<$m::Map as CompiledMap>::log_likelihood(es));
-        let _ = black_box(<$m::Map as CompiledMap>::marginals(es, out.get_mut(..n).unwrap_or(&mut [])));
-        let _ = black_box(<$m::Map as CompiledMap>::mpe(es, labels.get_mut(..n).unwrap_or(&mut [])));
-        let _ = black_box(<$m::Map as CompiledMap>::labelled_log_likelihood(labels.get(..n).unwrap_or(&[]), es));
-        black_box((&out, &labels));
-    }};
-}
-
-#[unsafe(no_mangle)]
-pub extern "C" fn _start() -> ! {
-    #[cfg(not(panic_control))]
-    {
-        exercise!(m32);
-        exercise!(m64);
-    }
-    #[cfg(panic_control)]
-    {
-        let a = black_box([1u8; 4]);
-        black_box(a[black_box(7usize)]);
-    }
-    loop {
-        core::hint::spin_loop();
-    }
-}
-"#;

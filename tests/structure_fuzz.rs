@@ -9,7 +9,7 @@
 mod common;
 
 use common::{Case, Variant, differential, env_usize};
-use graphspn::codegen::{DEFAULT_STACK_BYTES, Precision};
+use graphspn::codegen::{Precision, Vectorisation};
 use graphspn::decompose::synthetic::random_connected_map;
 use graphspn::decompose::{DecompositionParams, decompose_best};
 use graphspn::learn::{DenseParams, Model, dense_structure, uniform_spn};
@@ -128,18 +128,17 @@ fn random_case(seed: u64, vectors: usize) -> Case {
         model,
         map,
         decs,
-        // Every third structure is compiled to f64, every fourth takes the two-pass
-        // marginals.
+        // Every third structure is compiled to f64, every other one to scalar code.
         variants: vec![Variant {
             precision: if seed.is_multiple_of(3) {
                 Precision::F64
             } else {
                 Precision::F32
             },
-            max_stack_bytes: if seed % 4 == 1 {
-                0
+            vectorisation: if seed % 2 == 1 {
+                Vectorisation::Scalar
             } else {
-                DEFAULT_STACK_BYTES
+                Vectorisation::Simd
             },
         }],
         vectors,
@@ -155,17 +154,17 @@ fn random_structures_match_interpreter() {
     for batch in seeds.chunks(BATCH) {
         let cases: Vec<Case> = batch.iter().map(|&s| random_case(s, vectors)).collect();
         let modules = differential("structure_fuzz", &cases);
-        // The batch must exercise both code paths of the generator: lane-group kernels
-        // (dense templates in linear space) and per-node code.
+        // The batch must exercise both code paths of the generator: floor + sparse
+        // block code (dense templates in linear space) and per-node code.
         let count = |marker: &str| {
             modules
                 .iter()
                 .filter(|(_, src)| src.contains(marker))
                 .count()
         };
-        let (lanes, per_node) = (count("_fwdv("), count("_fwd(x: &[["));
+        let (lanes, per_node) = (count("_fwd(x: &[[V;"), count("_fwd(x: &[[f"));
         eprintln!(
-            "of {} structures, {lanes} use lane-group kernels and {per_node} per-node code",
+            "of {} structures, {lanes} use block code and {per_node} per-node code",
             modules.len()
         );
         if modules.len() >= 8 {

@@ -4,12 +4,15 @@
 //! Model: `$GRAPHSPN_MODEL`, else the demo model the `generated` crate ships
 //! (`generated/demo/model.json`, trained on all COLD maps). Maps: synthetic office floors
 //! (`map::synthetic`) of about 100, 1,000 and 10,000 places (`CODEGEN_SIZES` to
-//! choose), plus Saarbrucken's largest COLD map when `GRAPHSPN_DATA` is set; each with 5
+//! choose), plus Saarbrucken's largest COLD map (shipped copy, or `$GRAPHSPN_DATA`); each with 5
 //! decompositions from the real decomposer (`decompose_best`, 15 candidates).
 //! For every map a crate holding just the generated module is built in release mode
 //! (`target/codegen-bench`, the runtime prebuilt so the time is the module's own; the
 //! workspace's `.cargo/config.toml`, i.e. its target CPU, is copied in) and run; the interpreter's marginals on the same instance SPN and evidence are timed in
-//! this process. `CODEGEN_NO_BUILD=1` only generates; `CODEGEN_KEEP=1` keeps the sources.
+//! this process. Machine code: bytes of the built binary's functions that belong to
+//! the generated module or to the runtime driver it instantiates (`nm -S`, text
+//! symbols), and of the module's tables (read-only data symbols).
+//! `CODEGEN_NO_BUILD=1` only generates; `CODEGEN_KEEP=1` keeps the sources.
 //!
 //! Run: `cargo bench -p graphspn-compiler --bench codegen_scaling`.
 
@@ -86,9 +89,10 @@ fn maps(model: &Model) -> Vec<(String, TopoMap)> {
         .filter_map(|s| s.trim().parse().ok())
         .collect();
     let mut out = vec![];
-    if let Some(data) = std::env::var_os("GRAPHSPN_DATA") {
+    {
+        let data = graphspn_compiler::map::cold::data_dir(None);
         let maps = graphspn_compiler::map::cold::load_building(&data, "Saarbrucken")
-            .expect("GRAPHSPN_DATA is set but Saarbrucken does not load");
+            .expect("the COLD data folder holds Saarbrucken");
         let big = maps
             .into_iter()
             .max_by_key(|m| m.num_places())
@@ -112,7 +116,7 @@ fn main() {
         .canonicalize()
         .expect("runtime folder");
     println!(
-        "map | places | unique comps | gen ms | source KB | build s | ll µs | marginals µs | mpe µs | interp marginals µs | speed-up"
+        "map | places | unique comps | gen ms | source KB | build s | code KB | tables KB | ll µs | marginals µs | mpe µs | interp marginals µs | speed-up"
     );
     for (name, map) in maps(&model) {
         let decs = decompose_best(
@@ -163,7 +167,7 @@ fn main() {
         );
         let interp = interp_us.map_or("-".to_string(), |v| format!("{v:.0}"));
         if std::env::var_os("CODEGEN_NO_BUILD").is_some() {
-            println!("{row} | - | - | - | - | {interp} | -");
+            println!("{row} | - | - | - | - | - | - | {interp} | -");
             continue;
         }
         let dir = tempfile::tempdir().expect("tempdir");
@@ -206,6 +210,7 @@ fn main() {
             .expect("cargo");
         let build_s = t.elapsed().as_secs_f64();
         assert!(st.success(), "generated crate failed to build");
+        let (code, tables) = machine_code(&target.join("release/codegen-bench"));
         let out = Command::new(target.join("release/codegen-bench"))
             .output()
             .expect("run");
@@ -217,10 +222,40 @@ fn main() {
             _ => "-".into(),
         };
         println!(
-            "{row} | {build_s:.1} | {} | {} | {} | {interp} | {ratio}",
+            "{row} | {build_s:.1} | {} | {} | {} | {} | {} | {interp} | {ratio}",
+            code / 1024,
+            tables / 1024,
             t.first().unwrap_or(&"?"),
             t.get(1).unwrap_or(&"?"),
             t.get(2).unwrap_or(&"?")
         );
     }
+}
+
+/// Bytes of machine code (text symbols of the generated module `m` and of the
+/// runtime it instantiates) and of the module's read-only tables in binary `bin`,
+/// from `nm -S`; `(0, 0)` if `nm` is missing.
+fn machine_code(bin: &std::path::Path) -> (usize, usize) {
+    let Ok(out) = Command::new("nm")
+        .args(["-S", "-C", "-t", "d"])
+        .arg(bin)
+        .output()
+    else {
+        return (0, 0);
+    };
+    let (mut code, mut tables) = (0, 0);
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let f: Vec<&str> = line.splitn(4, ' ').collect();
+        let [_, size, kind, name] = f[..] else {
+            continue;
+        };
+        let size: usize = size.parse().unwrap_or(0);
+        let module = name.starts_with("codegen_bench::m::");
+        match kind {
+            "t" | "T" if module || name.starts_with("graphspn_runtime::") => code += size,
+            "r" | "R" | "d" | "D" if module => tables += size,
+            _ => {}
+        }
+    }
+    (code, tables)
 }

@@ -23,7 +23,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
-/// Overall class frequencies of the COLD maps (REFERENCE-FACTS.md §1), index order.
+/// Overall class frequencies of the COLD maps (listed in docs/FORMATS.md), index order.
 const FREQ: [f64; 10] = [
     0.053, 0.339, 0.109, 0.117, 0.038, 0.102, 0.049, 0.055, 0.051, 0.087,
 ];
@@ -167,13 +167,9 @@ fn bench(c: &mut Criterion) {
 }
 
 /// The learning issue's figure: training the whole model on the real Freiburg +
-/// Saarbrucken maps (needs `GRAPHSPN_DATA`; skipped when unset). Must stay under 60 s.
+/// Saarbrucken maps (the shipped copy, or `$GRAPHSPN_DATA`). Must stay under 60 s.
 fn bench_real(c: &mut Criterion) {
-    let Some(dir) = std::env::var_os("GRAPHSPN_DATA") else {
-        eprintln!("GRAPHSPN_DATA unset: skipping the real-data training bench");
-        return;
-    };
-    let dir = std::path::PathBuf::from(dir);
+    let dir = graphspn_compiler::map::cold::data_dir(None);
     let mut maps = graphspn_compiler::map::cold::load_building(&dir, "Freiburg").expect("Freiburg");
     maps.extend(
         graphspn_compiler::map::cold::load_building(&dir, "Saarbrucken").expect("Saarbrucken"),

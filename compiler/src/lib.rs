@@ -15,17 +15,35 @@
 //! | [`codegen`] | straight-line `no_std` Rust for a known map, and the `build.rs` builder |
 //! | [`mrf`] | Markov random field baselines with loopy belief propagation |
 //! | [`experiments`] | evidence simulation and the paper's experiments |
+//!
+//! Features: `host` (default) is everything; `codegen` alone is code generation and
+//! the loading it needs (maps, models, decompositions) — what a firmware's `build.rs`
+//! depends on; without `host` the modules marked *(host)* below are absent.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+// Without `host`, some helpers exist only for the absent modules.
+#![cfg_attr(not(feature = "host"), allow(dead_code, unused_imports))]
 
+#[cfg(feature = "codegen")]
 pub mod codegen;
 pub mod decompose;
+/// *(host)*
+#[cfg(feature = "host")]
 pub mod experiments;
+/// *(host)*
+#[cfg(feature = "host")]
 pub mod instance;
+/// *(host)*
+#[cfg(feature = "host")]
 pub mod interpreter;
 pub mod learn;
 pub mod map;
+/// *(host)*
+#[cfg(feature = "host")]
 pub mod mrf;
+mod par;
+/// *(host)*
+#[cfg(feature = "host")]
 pub mod render;
 pub mod spn;
 pub mod template;

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
 use codegen_common::*;
-use graphspn_compiler::codegen::{CodegenOptions, Precision, generate};
+use graphspn_compiler::codegen::{CodegenOptions, Precision, Vectorisation, generate};
 use graphspn_compiler::decompose::Decomposition;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::TopoMap;
@@ -23,7 +23,8 @@ struct Case {
     map: TopoMap,
     decs: Vec<Decomposition>,
     precision: Precision,
-    chunk: usize,
+    /// Scalar code (microcontroller form) instead of SIMD lane groups.
+    scalar: bool,
 }
 
 /// Evidence rows: random, exact zeros, tiny values, one-hot, uniform.
@@ -77,7 +78,7 @@ fn cases() -> Vec<Case> {
             map: mp.clone(),
             decs: decs.clone(),
             precision,
-            chunk: 64,
+            scalar: false,
         });
     }
     for seed in 0..6u64 {
@@ -106,7 +107,7 @@ fn cases() -> Vec<Case> {
             map: g,
             decs,
             precision,
-            chunk: 1 + seed as usize % 3,
+            scalar: seed % 2 == 1,
         });
     }
     // A Star on a 5-place plus-shaped map.
@@ -125,7 +126,7 @@ fn cases() -> Vec<Case> {
         map: g,
         decs,
         precision: Precision::F32,
-        chunk: 2,
+        scalar: true,
     });
     // The real model structure (dense region blocks → the dense kernels): symmetric
     // Star/Three/Pair as trained by default, and plain dense ones with two random splits
@@ -152,7 +153,7 @@ fn cases() -> Vec<Case> {
             map: g,
             decs,
             precision,
-            chunk: 3,
+            scalar: false,
         });
     }
     out
@@ -293,7 +294,11 @@ fn generated_code_matches_brute_force() {
     for case in &cases {
         let opts = CodegenOptions {
             precision: case.precision,
-            chunk_size: case.chunk,
+            vectorisation: if case.scalar {
+                Vectorisation::Scalar
+            } else {
+                Vectorisation::Simd
+            },
             ..Default::default()
         };
         let src = generate(&case.model, &case.map, &case.decs, &opts).unwrap();

@@ -1,4 +1,4 @@
-//! Per-template node shares (REFERENCE-FACTS.md §2: Star about 0.61–0.67,
+//! Per-template node shares (as the authors' decomposer gives them: Star about 0.61–0.67,
 //! Three 0.15–0.20, Pair 0.04–0.06, Singleton about 0.14).
 
 use graphspn_compiler::decompose::synthetic::random_connected_map;
@@ -78,16 +78,13 @@ fn shares_pool_over_maps_and_decompositions() {
     assert_eq!(template_shares(&[], &ts, &params).unwrap(), vec![0.0; 4]);
 }
 
-/// Template shares over the 90 real COLD maps; needs `GRAPHSPN_DATA` (skips when unset,
-/// fails when set but missing). Prints the shares for the record.
+/// Template shares over the 90 real COLD maps (the shipped copy, or `$GRAPHSPN_DATA`;
+/// fails if they are missing). Prints the shares for the record.
 #[test]
 fn real_map_shares() {
-    let Some(dir) = std::env::var_os("GRAPHSPN_DATA") else {
-        eprintln!("GRAPHSPN_DATA unset: skipping the real-map share check");
-        return;
-    };
-    let maps = cold::load_all(std::path::Path::new(&dir))
-        .expect("GRAPHSPN_DATA is set: the COLD maps must load");
+    let dir = cold::data_dir(None);
+    let maps = cold::load_all(&dir)
+        .unwrap_or_else(|e| panic!("the COLD maps in {} must load: {e}", dir.display()));
     check_real_map_shares(&maps);
     let ts = Template::paper_set();
     let best = template_shares(&maps, &ts, &DecompositionParams::default()).unwrap();

@@ -1,5 +1,5 @@
-//! The quick reproduction on the real COLD data (needs GRAPHSPN_DATA; fails if it
-//! is set but missing, skips when unset): outputs exist and parse, accuracies are
+//! The quick reproduction on the real COLD data (the shipped copy, or
+//! `$GRAPHSPN_DATA`; fails if missing): outputs exist and parse, accuracies are
 //! probabilities, GraphSPN beats the evidence alone at NL2, and results do not
 //! depend on the number of threads.
 
@@ -11,18 +11,15 @@ use graphspn_compiler::experiments::reproduce::{
 };
 use graphspn_compiler::learn::Progress;
 
-fn data() -> Option<PathBuf> {
-    let d = PathBuf::from(std::env::var_os("GRAPHSPN_DATA")?);
-    assert!(d.is_dir(), "GRAPHSPN_DATA={} is not a folder", d.display());
-    Some(d)
+fn data() -> PathBuf {
+    let d = graphspn_compiler::map::cold::data_dir(None);
+    assert!(d.is_dir(), "{} is not a folder", d.display());
+    d
 }
 
 #[test]
 fn quick_reproduction_on_cold() {
-    let Some(dir) = data() else {
-        eprintln!("GRAPHSPN_DATA unset: skipping");
-        return;
-    };
+    let dir = data();
     let all = load_data(&dir).expect("load COLD maps");
     let mut cfg = ReproduceConfig::quick(7);
     cfg.progress = Progress::Hidden;

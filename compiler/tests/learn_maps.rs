@@ -1,5 +1,5 @@
 //! Learning from real COLD maps and querying the instance of a held-out map.
-//! Needs `GRAPHSPN_DATA` (skipped when unset, fails when set but missing).
+//! Reads the shipped COLD maps (or `$GRAPHSPN_DATA`); fails if they are missing.
 
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -11,14 +11,14 @@ use graphspn_compiler::map::{TopoMap, cold};
 use graphspn_compiler::template::Template;
 use proptest::prelude::*;
 
-fn data() -> Option<PathBuf> {
-    let d = PathBuf::from(std::env::var_os("GRAPHSPN_DATA")?);
+fn data() -> PathBuf {
+    let d = cold::data_dir(None);
     assert!(
         d.join("Freiburg").is_dir(),
-        "GRAPHSPN_DATA={} does not hold the COLD maps",
+        "{} does not hold the COLD maps",
         d.display()
     );
-    Some(d)
+    d
 }
 
 fn load(d: &std::path::Path, seq: &str) -> TopoMap {
@@ -34,30 +34,25 @@ const TRAIN: [&str; 3] = [
 /// The model, its per-template training reports and the training maps.
 type Trained = (Model, Vec<TemplateTraining>, Vec<TopoMap>);
 
-fn trained() -> Option<&'static Trained> {
-    static MODEL: OnceLock<Option<Trained>> = OnceLock::new();
-    MODEL
-        .get_or_init(|| {
-            let d = data()?;
-            let maps: Vec<TopoMap> = TRAIN.iter().map(|s| load(&d, s)).collect();
-            let (model, trainings) = train_model(
-                &maps,
-                &Template::paper_set(),
-                &TrainingSettings::default(),
-                Progress::Hidden,
-            )
-            .unwrap();
-            Some((model, trainings, maps))
-        })
-        .as_ref()
+fn trained() -> &'static Trained {
+    static MODEL: OnceLock<Trained> = OnceLock::new();
+    MODEL.get_or_init(|| {
+        let d = data();
+        let maps: Vec<TopoMap> = TRAIN.iter().map(|s| load(&d, s)).collect();
+        let (model, trainings) = train_model(
+            &maps,
+            &Template::paper_set(),
+            &TrainingSettings::default(),
+            Progress::Hidden,
+        )
+        .unwrap();
+        (model, trainings, maps)
+    })
 }
 
 #[test]
 fn training_log_likelihood_rises() {
-    let Some((_, trainings, _)) = trained() else {
-        eprintln!("GRAPHSPN_DATA unset: skipped");
-        return;
-    };
+    let (_, trainings, _) = trained();
     for t in trainings {
         let Some(r) = &t.report else { continue };
         let per_epoch = &r.log_likelihood_per_epoch;
@@ -81,11 +76,11 @@ fn training_log_likelihood_rises() {
     }
 }
 
-fn test_map() -> Option<(TopoMap, InstanceModel)> {
-    let (model, _, _) = trained()?;
-    let map = load(&data()?, "Freiburg/seq2_cloudy1");
+fn test_map() -> (TopoMap, InstanceModel) {
+    let (model, _, _) = trained();
+    let map = load(&data(), "Freiburg/seq2_cloudy1");
     let inst = Instance::for_map(model, &map, &InstanceParams::default()).unwrap();
-    Some((map, InstanceModel::new(inst).unwrap()))
+    (map, InstanceModel::new(inst).unwrap())
 }
 
 fn certain_rows(map: &TopoMap) -> Vec<Vec<f64>> {
@@ -102,10 +97,7 @@ fn certain_rows(map: &TopoMap) -> Vec<Vec<f64>> {
 
 #[test]
 fn certain_evidence_gives_the_truth() {
-    let Some((map, mut im)) = test_map() else {
-        eprintln!("GRAPHSPN_DATA unset: skipped");
-        return;
-    };
+    let (map, mut im) = test_map();
     let m = im
         .marginals(&Evidence::from_rows(certain_rows(&map)))
         .unwrap();
@@ -145,11 +137,8 @@ fn co_occurrence(maps: &[TopoMap], c: usize) -> Vec<Vec<f64>> {
 
 #[test]
 fn a_place_without_evidence_follows_its_neighbours() {
-    let Some((map, mut im)) = test_map() else {
-        eprintln!("GRAPHSPN_DATA unset: skipped");
-        return;
-    };
-    let (_, _, train_maps) = trained().unwrap();
+    let (map, mut im) = test_map();
+    let (_, _, train_maps) = trained();
     let c = map.classes.len();
     let co = co_occurrence(train_maps, c);
     let cr = map.classes.index_of("CR").unwrap() as usize;
@@ -219,7 +208,7 @@ proptest! {
     /// unchanged.
     #[test]
     fn trained_template_spns_are_symmetric(x in proptest::collection::vec(0u32..10, 5), t in 0usize..3) {
-        let Some((model, _, _)) = trained() else { return Ok(()); };
+        let (model, _, _) = trained();
         let tpl = &model.templates[t];
         prop_assume!(tpl.num_nodes > 1);
         let spn = &model.spns[t];

@@ -1,17 +1,12 @@
-//! Acceptance test of the COLD loader against REFERENCE-FACTS.md section 1.
-//! Needs `GRAPHSPN_DATA`; skips when unset, fails when set but missing.
+//! Acceptance test of the COLD loader against the published statistics of the 90
+//! maps (docs/FORMATS.md). Reads the shipped copy (or `$GRAPHSPN_DATA`); fails if missing.
 
 use graphspn_compiler::map::{TopoMap, cold};
 
-fn data_dir() -> Option<std::path::PathBuf> {
-    let dir = std::env::var_os("GRAPHSPN_DATA")?;
-    let dir = std::path::PathBuf::from(dir);
-    assert!(
-        dir.is_dir(),
-        "GRAPHSPN_DATA={} is set but is not a folder",
-        dir.display()
-    );
-    Some(dir)
+fn data_dir() -> std::path::PathBuf {
+    let dir = cold::data_dir(None);
+    assert!(dir.is_dir(), "{} is not a folder", dir.display());
+    dir
 }
 
 /// Median as the reference table gives it (mean of the two middle values).
@@ -30,10 +25,7 @@ type Row = (&'static str, usize, [f64; 3], [f64; 3], usize);
 
 #[test]
 fn cold_maps_match_reference_table() {
-    let Some(dir) = data_dir() else {
-        eprintln!("GRAPHSPN_DATA unset: skipping");
-        return;
-    };
+    let dir = data_dir();
     // (building, sequences, nodes min/median/max, edges min/median/max, placeholders)
     let table: [Row; 3] = [
         (
@@ -113,9 +105,7 @@ fn cold_maps_match_reference_table() {
 
 #[test]
 fn cold_class_frequencies_and_relabel() {
-    let Some(dir) = data_dir() else {
-        return;
-    };
+    let dir = data_dir();
     let all = cold::load_all(&dir).expect("load all");
     let mut counts = [0usize; 10];
     for m in &all {
@@ -124,7 +114,7 @@ fn cold_class_frequencies_and_relabel() {
         }
     }
     let total: usize = counts.iter().sum();
-    // REFERENCE-FACTS.md: CR 33.9%, 2PO 11.7%, 1PO 10.9%, ... (rounded to 0.1%).
+    // Published class shares: CR 33.9%, 2PO 11.7%, 1PO 10.9%, ... (rounded to 0.1%).
     let expected = [5.3, 33.9, 10.9, 11.7, 3.8, 10.2, 4.9, 5.5, 5.1, 8.7];
     for (c, &e) in expected.iter().enumerate() {
         let got = 100.0 * counts[c] as f64 / total as f64;
@@ -157,9 +147,7 @@ fn cold_class_frequencies_and_relabel() {
 #[test]
 fn cold_reference_stats_match_data() {
     use graphspn_compiler::map::stats::MapStats;
-    let Some(dir) = data_dir() else {
-        return;
-    };
+    let dir = data_dir();
     let all = cold::load_all(&dir).expect("load all");
     assert_eq!(MapStats::of_maps(&all), MapStats::cold_reference());
 }

@@ -118,11 +118,8 @@ fn json_round_trip_synthetic_and_file() {
 
 #[test]
 fn json_round_trip_cold() {
-    let Some(dir) = std::env::var_os("GRAPHSPN_DATA") else {
-        return;
-    };
-    let m = cold::load_sequence(std::path::Path::new(&dir).join("Saarbrucken/seq3_cloudy1"))
-        .expect("load");
+    let dir = cold::data_dir(None);
+    let m = cold::load_sequence(dir.join("Saarbrucken/seq3_cloudy1")).expect("load");
     assert_same(&m, &TopoMap::from_json(&m.to_json()).unwrap());
 }
 

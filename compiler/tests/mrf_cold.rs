@@ -1,5 +1,5 @@
-//! MRF baselines on the real COLD maps (needs `GRAPHSPN_DATA`; skipped when the
-//! variable is unset, fails when it is set but the folder is missing).
+//! MRF baselines on the real COLD maps (the shipped copy, or `$GRAPHSPN_DATA`; fails
+//! if the folder is missing).
 
 use graphspn_compiler::experiments::evidence::{NoiseLevel, simulate_map_evidence};
 use graphspn_compiler::map::{ClassId, TopoMap, cold};
@@ -9,7 +9,7 @@ use std::time::Instant;
 
 fn building(root: &Path, b: &str) -> Vec<TopoMap> {
     cold::load_building(root, b)
-        .unwrap_or_else(|e| panic!("GRAPHSPN_DATA is set, so {b} must load: {e}"))
+        .unwrap_or_else(|e| panic!("{b} must load from {}: {e}", root.display()))
 }
 
 fn accuracy(marg: &[Vec<f64>], map: &TopoMap, only: impl Fn(usize) -> bool) -> f64 {
@@ -28,19 +28,11 @@ fn accuracy(marg: &[Vec<f64>], map: &TopoMap, only: impl Fn(usize) -> bool) -> f
     ok as f64 / n.max(1) as f64
 }
 
-/// `$GRAPHSPN_DATA` (the COLD maps folder), or `None` (test skipped) when unset.
-fn data_root() -> Option<PathBuf> {
-    let Ok(root) = std::env::var("GRAPHSPN_DATA") else {
-        eprintln!("GRAPHSPN_DATA unset: skipping");
-        return None;
-    };
-    let root = PathBuf::from(root);
-    assert!(
-        root.is_dir(),
-        "GRAPHSPN_DATA={} is not a folder",
-        root.display()
-    );
-    Some(root)
+/// The COLD maps folder ([`cold::data_dir`]); a missing folder fails the test.
+fn data_root() -> PathBuf {
+    let root = cold::data_dir(None);
+    assert!(root.is_dir(), "{} is not a folder", root.display());
+    root
 }
 
 /// MRF-2 and MRF-3 trained on `train` with the given normalisation.
@@ -57,9 +49,7 @@ fn models(train: &[TopoMap], norm: Normalisation) -> (Mrf2, Mrf3) {
 
 #[test]
 fn mrf_baselines_on_cold() {
-    let Some(root) = data_root() else {
-        return;
-    };
+    let root = data_root();
     let fr = building(&root, "Freiburg");
     let sa = building(&root, "Saarbrucken");
     let st = building(&root, "Stockholm");
@@ -108,9 +98,7 @@ fn mrf_baselines_on_cold() {
 /// true labelling must beat the same map with corridor ↔ doorway swapped.
 #[test]
 fn mrf_likelihood_prefers_true_labels_on_cold() {
-    let Some(root) = data_root() else {
-        return;
-    };
+    let root = data_root();
     let mut train = building(&root, "Saarbrucken");
     train.extend(building(&root, "Stockholm"));
     let test = building(&root, "Freiburg");

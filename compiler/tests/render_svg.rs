@@ -70,11 +70,8 @@ fn renders_synthetic_map() {
 
 #[test]
 fn renders_cold_map() {
-    let Some(dir) = std::env::var_os("GRAPHSPN_DATA") else {
-        return;
-    };
-    let m = cold::load_sequence(std::path::Path::new(&dir).join("Freiburg/seq1_cloudy1"))
-        .expect("load");
+    let dir = cold::data_dir(None);
+    let m = cold::load_sequence(dir.join("Freiburg/seq1_cloudy1")).expect("load");
     check_plain(&m);
 }
 

@@ -29,6 +29,32 @@ pub trait CompiledMap {
     const CLASS_NAMES: &'static [&'static str];
     /// A row of zeros, to initialise evidence and marginal buffers in generic code.
     const ZERO_ROW: Self::Row;
+    /// Components evaluated per template call (SIMD lanes; 1 = scalar code).
+    const LANES: usize;
+    /// Distinct components (template copies) of the map.
+    const NUM_COMPONENTS: usize;
+    /// Upper bound of the stack (bytes) of `log_likelihood` / `labelled_log_likelihood`.
+    const STACK_BYTES_LOG_LIKELIHOOD: usize;
+    /// Upper bound of the stack (bytes) of `marginals`.
+    const STACK_BYTES_MARGINALS: usize;
+    /// Upper bound of the stack (bytes) of `mpe`.
+    const STACK_BYTES_MPE: usize;
+    /// Upper bound of the stack (bytes) of a state update or query.
+    const STACK_BYTES_STATE: usize;
+    /// Bytes of one [`CompiledMap::State`].
+    const STATE_BYTES: usize;
+    /// Multiply(-add)s of one `log_likelihood` call.
+    const MACS_LOG_LIKELIHOOD: usize;
+    /// Multiply(-add)s of one `marginals` call.
+    const MACS_MARGINALS: usize;
+    /// Multiply(-add)s of one `mpe` call.
+    const MACS_MPE: usize;
+    /// Worst-case multiply(-add)s of one state update plus state marginals.
+    const MACS_OBSERVE_MARGINALS: usize;
+    /// The streaming state of this map (see the generated `State`).
+    type State;
+    /// A state without evidence (usable in a `static`).
+    const NEW_STATE: Self::State;
 
     /// Natural log of the likelihood of the evidence, `ln S(α)`.
     fn log_likelihood(e: &[Self::Row]) -> Result<Self::Scalar, EvidenceError>;
@@ -46,6 +72,52 @@ pub trait CompiledMap {
         labels: &[u16],
         e: &[Self::Row],
     ) -> Result<Self::Scalar, EvidenceError>;
+
+    /// Streaming: sets the evidence row of place index `place` and updates the cache
+    /// (only the components containing the place are re-evaluated).
+    fn set_evidence(
+        s: &mut Self::State,
+        place: usize,
+        row: &Self::Row,
+    ) -> Result<(), EvidenceError>;
+
+    /// Streaming: fuses an observation into the place's row (element-wise product,
+    /// renormalised) and updates the cache.
+    fn observe(s: &mut Self::State, place: usize, row: &Self::Row) -> Result<(), EvidenceError>;
+
+    /// Streaming: removes the evidence of a place (row of ones) and updates the cache.
+    fn clear_evidence(s: &mut Self::State, place: usize) -> Result<(), EvidenceError>;
+
+    /// Streaming: `ln S` of the state's evidence, from the cache.
+    fn state_log_likelihood(s: &mut Self::State) -> Result<Self::Scalar, EvidenceError>;
+
+    /// Streaming: the marginals of every place, from the cache; returns `ln S`.
+    fn state_marginals(
+        s: &mut Self::State,
+        out: &mut [Self::Row],
+    ) -> Result<Self::Scalar, EvidenceError>;
+
+    /// Streaming: the marginal of one place, from the cache (`O(D·C)`).
+    fn state_marginal(
+        s: &mut Self::State,
+        place: usize,
+        row: &mut Self::Row,
+    ) -> Result<(), EvidenceError>;
+
+    /// Streaming: the state's evidence rows (all ones where a place has none).
+    fn state_evidence(s: &Self::State) -> &[Self::Row];
+
+    /// Streaming: replaces all evidence and re-evaluates every component.
+    fn set_all(s: &mut Self::State, e: &[Self::Row]) -> Result<(), EvidenceError>;
+
+    /// Streaming: the labelled log-likelihood of the state's evidence (a full pass).
+    fn state_labelled_log_likelihood(
+        s: &mut Self::State,
+        labels: &[u16],
+    ) -> Result<Self::Scalar, EvidenceError>;
+
+    /// Streaming: the MPE labelling of the state's evidence (a full max-product pass).
+    fn state_mpe(s: &mut Self::State, labels: &mut [u16]) -> Result<Self::Scalar, EvidenceError>;
 }
 
 /// Converts a slice of rows into a fixed-size array reference, or reports

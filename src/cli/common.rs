@@ -3,85 +3,244 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use graphspn_compiler::decompose::Decomposition;
+use graphspn_compiler::instance::Instance;
+use graphspn_compiler::learn::Model;
+use graphspn_compiler::map::cold::Dropped;
 use graphspn_compiler::map::{TopoMap, cold};
 
-/// The data folder: the argument, else `$GRAPHSPN_DATA`.
-pub fn data_dir(arg: Option<PathBuf>) -> Option<PathBuf> {
-    arg.or_else(|| std::env::var_os("GRAPHSPN_DATA").map(PathBuf::from))
+use super::output::Outputs;
+
+/// The COLD data folder: `--data`, else `$GRAPHSPN_DATA`, else the copy shipped in the
+/// repository ([`cold::data_dir`]).
+pub fn data_dir(arg: Option<PathBuf>) -> PathBuf {
+    cold::data_dir(arg.as_deref())
 }
 
-/// The data folder, or an error saying how to give one.
+/// The data folder ([`data_dir`]), or an error if it is not a folder.
 pub fn require_data_dir(arg: Option<PathBuf>) -> Result<PathBuf> {
-    match data_dir(arg) {
-        Some(d) => Ok(d),
-        None => bail!("no data folder: pass --data DIR or set GRAPHSPN_DATA"),
+    let d = data_dir(arg);
+    if !d.is_dir() {
+        bail!(
+            "--data {}: not a folder (the COLD maps folder holding Freiburg/, Saarbrucken/, Stockholm/)",
+            d.display()
+        );
     }
+    Ok(d)
 }
 
-/// All maps of the named COLD buildings, building by building in the order given.
-pub fn load_buildings(data: &std::path::Path, buildings: &[String]) -> Result<Vec<TopoMap>> {
-    let mut maps = Vec::new();
-    for b in buildings {
+/// Checks building names (known, no repeats) given with `flag`.
+pub fn check_buildings(flag: &str, buildings: &[String]) -> Result<()> {
+    if buildings.is_empty() {
+        bail!("{flag}: give at least one building");
+    }
+    for (i, b) in buildings.iter().enumerate() {
         if !cold::BUILDINGS.contains(&b.as_str()) {
             bail!(
-                "unknown building {b:?}: choose among {}",
+                "{flag}: unknown building {b:?}: choose among {}",
                 cold::BUILDINGS.join(", ")
             );
         }
-        maps.extend(
-            cold::load_building(data, b)
-                .with_context(|| format!("loading building {b} from {}", data.display()))?,
-        );
+        if buildings[..i].contains(b) {
+            bail!("{flag}: building {b} is listed twice (its maps would count twice)");
+        }
+    }
+    Ok(())
+}
+
+/// All maps of the named COLD buildings, building by building in the order given.
+/// Names must have passed [`check_buildings`].
+pub fn load_buildings(data: &Path, buildings: &[String]) -> Result<Vec<TopoMap>> {
+    let mut maps = Vec::new();
+    for b in buildings {
+        maps.extend(cold::load_building(data, b)?);
     }
     Ok(maps)
 }
 
-/// A map: a COLD sequence folder (nodes.dat + rooms.dat), a JSON map file, or a
-/// sequence name such as `Freiburg/seq1_cloudy1` under the data folder.
-pub fn load_map(path: &Path, data: Option<PathBuf>) -> Result<TopoMap> {
-    let resolved = if path.exists() {
-        path.to_path_buf()
-    } else if let Some(d) = data.filter(|_| path.is_relative()) {
-        d.join(path)
-    } else {
-        path.to_path_buf()
-    };
+/// A loaded map and what the COLD filtering dropped from it (nothing for JSON maps).
+pub struct LoadedMap {
+    /// The map.
+    pub map: TopoMap,
+    /// Places the COLD loader dropped (empty for a JSON map).
+    pub dropped: Dropped,
+}
+
+/// Where `--map` points: an existing path, else a sequence name under the data folder.
+pub fn resolve_map(path: &Path, data: PathBuf) -> Result<PathBuf> {
+    if path.exists() {
+        return Ok(path.to_path_buf());
+    }
+    let under = data.join(path);
+    if path.is_relative() && !path.as_os_str().is_empty() && under.exists() {
+        return Ok(under);
+    }
+    bail!(
+        "--map {}: no such map (give a COLD sequence folder, a JSON map, or a sequence name such as Freiburg/seq1_cloudy1 under the data folder {})",
+        path.display(),
+        data.display()
+    )
+}
+
+/// Resolves `--map` ([`resolve_map`]) and declares it (and, for a COLD folder, its
+/// two files) an input of `outputs`. Read it with [`read_map`] once every output is
+/// declared.
+pub fn declare_map(path: &Path, data: PathBuf, outputs: &mut Outputs) -> Result<PathBuf> {
+    let resolved = resolve_map(path, data)?;
+    outputs.input("--map", &resolved);
     if resolved.is_dir() {
-        Ok(cold::load_sequence(&resolved)
-            .with_context(|| format!("loading COLD sequence {}", resolved.display()))?)
-    } else if resolved.exists() {
-        Ok(TopoMap::load(&resolved)
-            .with_context(|| format!("loading JSON map {}", resolved.display()))?)
+        outputs.input("--map", &resolved.join("nodes.dat"));
+        outputs.input("--map", &resolved.join("rooms.dat"));
+    }
+    Ok(resolved)
+}
+
+/// A map: a COLD sequence folder (nodes.dat + rooms.dat) or a JSON map file (a path
+/// from [`declare_map`]). Warns on standard error when a COLD map loses places to
+/// disconnection (the loader keeps the largest connected component).
+pub fn read_map(resolved: &Path) -> Result<LoadedMap> {
+    let (map, dropped) = if resolved.is_dir() {
+        cold::load_sequence_report(resolved)?
     } else {
+        (TopoMap::load(resolved)?, Dropped::default())
+    };
+    if !dropped.disconnected.is_empty() {
+        let total = map.num_places() + dropped.disconnected.len();
+        eprintln!(
+            "warning: {}: the map is not connected; {} of its {total} places are outside the largest connected component and were dropped (ids {})",
+            resolved.display(),
+            dropped.disconnected.len(),
+            id_list(&dropped.disconnected)
+        );
+    }
+    Ok(LoadedMap { map, dropped })
+}
+
+/// Up to 10 ids, comma-separated, then `…` if there are more.
+pub fn id_list(ids: &[u32]) -> String {
+    let mut s: Vec<String> = ids.iter().take(10).map(u32::to_string).collect();
+    if ids.len() > 10 {
+        s.push(format!("… ({} in all)", ids.len()));
+    }
+    s.join(", ")
+}
+
+/// Reads a model (validated by [`Model::load`]; errors name the file, template and node).
+pub fn load_model(path: &Path) -> Result<Model> {
+    if !path.is_file() {
+        bail!("--model {}: no such file", path.display());
+    }
+    Ok(Model::load(path)?)
+}
+
+/// Checks a number of decompositions given with `flag` before any work.
+pub fn check_decomposition_count(flag: &str, count: usize) -> Result<()> {
+    if count == 0 {
+        bail!("{flag} 0: the instance needs at least one decomposition");
+    }
+    if count > MAX_DECOMPOSITIONS {
         bail!(
-            "{}: no such map (give a COLD sequence folder, a JSON map, or a sequence name under --data / $GRAPHSPN_DATA)",
-            path.display()
-        )
+            "{flag} {count}: at most {MAX_DECOMPOSITIONS} (each decomposition adds a copy of the map's template networks)"
+        );
+    }
+    Ok(())
+}
+
+/// Largest `--decompositions` accepted by `infer`, `instance`, `compile` and `decompose`.
+pub const MAX_DECOMPOSITIONS: usize = 1000;
+
+/// Decompositions for `map`: read from `file` (a decompositions file, checked against
+/// the map and the model's templates) or made by the seeded decomposer.
+pub fn decompositions_for(
+    model: &Model,
+    map: &TopoMap,
+    file: Option<&Path>,
+    count: usize,
+    seed: u64,
+) -> Result<Vec<Decomposition>> {
+    match file {
+        Some(f) => {
+            let decs = graphspn_compiler::decompose::file::load(f, map, &model.templates)?;
+            if decs.is_empty() {
+                bail!("{}: holds no decompositions", f.display());
+            }
+            Ok(decs)
+        }
+        None => {
+            let dp = graphspn_compiler::decompose::DecompositionParams {
+                count,
+                candidates: (3 * count).max(15),
+                seed,
+            };
+            Ok(
+                graphspn_compiler::decompose::decompose_best(map, &model.templates, &dp)
+                    .with_context(|| format!("decomposing map {:?}", map.name))?,
+            )
+        }
     }
 }
 
-/// Loads a model and builds the instance GraphSPN of `map` with `decompositions`
-/// decompositions (best of 3×, at least 15 candidates) seeded by `seed`.
-pub fn instance_for(
-    model_path: &Path,
+/// Largest memory (bytes) a host command may plan to use before it refuses with an
+/// estimate: 4 GiB.
+pub const MEMORY_LIMIT: u128 = 4 << 30;
+
+fn gb(bytes: u128) -> String {
+    format!("{:.1} GB", bytes as f64 / 1e9)
+}
+
+/// Builds the explicit instance GraphSPN of `map` from `decompositions`; refuses,
+/// before building, one estimated above [`MEMORY_LIMIT`] (the SPN and its text).
+pub fn instance_of(
+    model: &Model,
     map: &TopoMap,
-    decompositions: usize,
-    seed: u64,
-) -> Result<(
-    graphspn_compiler::learn::Model,
-    graphspn_compiler::instance::Instance,
-)> {
-    use graphspn_compiler::instance::{Instance, InstanceParams};
-    let model = graphspn_compiler::learn::Model::load(model_path)
-        .with_context(|| format!("loading model {}", model_path.display()))?;
-    let params = InstanceParams {
+    decompositions: Vec<Decomposition>,
+) -> Result<Instance> {
+    let estimate =
+        2 * graphspn_compiler::instance::estimated_explicit_bytes(model, &decompositions);
+    if estimate > MEMORY_LIMIT {
+        bail!(
+            "the explicit instance SPN of map {:?} ({} places, {} decompositions) would take about {} (limit {}): use fewer decompositions or a smaller map (`graphspn infer` answers queries without the explicit SPN)",
+            map.name,
+            map.num_places(),
+            decompositions.len(),
+            gb(estimate),
+            gb(MEMORY_LIMIT)
+        );
+    }
+    Instance::build(model, map, decompositions)
+        .with_context(|| format!("building the instance of map {:?}", map.name))
+}
+
+/// Refuses `--decompositions` values whose component evaluator (and decomposition
+/// step) is estimated above [`MEMORY_LIMIT`].
+pub fn check_component_memory(model: &Model, map: &TopoMap, decompositions: usize) -> Result<()> {
+    let estimate = graphspn_compiler::instance::estimated_component_bytes(
+        map.num_places(),
+        model.classes.len(),
         decompositions,
-        candidates: (3 * decompositions).max(15),
-        seed,
-    };
-    let inst = Instance::for_map(&model, map, &params)
-        .with_context(|| format!("building the instance of map {:?}", map.name))?;
-    Ok((model, inst))
+        (3 * decompositions).max(15),
+    );
+    if estimate > MEMORY_LIMIT {
+        bail!(
+            "--decompositions {decompositions} on map {:?} ({} places) would take about {} (limit {}): lower --decompositions",
+            map.name,
+            map.num_places(),
+            gb(estimate),
+            gb(MEMORY_LIMIT)
+        );
+    }
+    Ok(())
+}
+
+/// The component-wise evaluator of `map`'s instance mixing `decompositions` (no
+/// explicit SPN: memory linear in places).
+pub fn component_instance_of(
+    model: &Model,
+    map: &TopoMap,
+    decompositions: Vec<Decomposition>,
+) -> Result<graphspn_compiler::instance::ComponentInstance> {
+    graphspn_compiler::instance::ComponentInstance::build(model, map, decompositions)
+        .with_context(|| format!("building the instance of map {:?}", map.name))
 }
 
 /// Writes `text` to standard output; a closed pipe (e.g. `| head`) is not an error.
@@ -91,4 +250,22 @@ pub fn write_stdout(text: &str) -> Result<()> {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
         r => Ok(r.context("writing to standard output")?),
     }
+}
+
+/// An error and its causes on one line, each cause once: a cause whose text the
+/// line already holds (library errors repeat their source in their message) is
+/// skipped.
+pub fn error_chain(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let msg = cause.to_string();
+        if line.contains(&msg) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&msg);
+    }
+    line
 }

@@ -4,27 +4,43 @@
 //! Evidence file (JSON): `{"format": 1, "evidence": {"<place id>": [α per class], …}}`.
 //! α are non-negative class likelihoods (need not sum to 1, not all 0); places not
 //! listed get α = 1 for every class (no evidence), so the reported log-likelihood is
-//! ln P(evidence of the listed places).
+//! ln P(evidence of the listed places). `docs/FORMATS.md` describes the file.
 
 use std::collections::BTreeMap;
+use std::fmt;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use graphspn_compiler::instance::InstanceModel;
-use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::map::TopoMap;
+use graphspn_compiler::map::cold::Dropped;
 use graphspn_compiler::render::{RenderOptions, render_svg};
 use serde::Deserialize;
+use serde::de::{MapAccess, Visitor};
 use serde_json::json;
 
-use super::common::{data_dir, instance_for, load_map};
+use super::common::{
+    check_component_memory, check_decomposition_count, component_instance_of, data_dir,
+    declare_map, decompositions_for, load_model, read_map,
+};
+use super::output::{Outputs, write_files};
 
 /// Version of the evidence file format.
 pub const EVIDENCE_FORMAT: u32 = 1;
 
 /// Arguments of `graphspn infer`.
 #[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn infer --model generated/demo/model.json --map generated/demo/floor.json
+  graphspn infer --model model.json --map Freiburg/seq1_cloudy1 --evidence ev.json --mpe --out result.json --svg result.svg
+
+Evidence file (JSON; docs/FORMATS.md):
+  {\"format\": 1, \"evidence\": {\"12\": [0.1, 0.9, 0, 0, 0, 0, 0, 0, 0, 0]}}
+one row per place id, one non-negative likelihood per class of the map (in the map's
+class order, not all 0; need not sum to 1). Places not listed have no evidence."
+)]
 pub struct InferArgs {
     /// Model file written by `graphspn train`.
     #[arg(long)]
@@ -32,15 +48,20 @@ pub struct InferArgs {
     /// The map: a JSON map, a COLD sequence folder, or a sequence name under --data.
     #[arg(long)]
     map: PathBuf,
-    /// Evidence file (JSON, see the module documentation); without it, no evidence.
+    /// Evidence file (JSON): {"format": 1, "evidence": {"<place id>": [likelihood per
+    /// class], ...}}; without it, no evidence. See the example below.
     #[arg(long)]
     evidence: Option<PathBuf>,
-    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA).
+    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Number of decompositions mixed by the instance.
+    /// Number of decompositions mixed by the instance (1..=1000).
     #[arg(long, default_value_t = 5)]
     decompositions: usize,
+    /// Read the decompositions from this file (written by `graphspn decompose`)
+    /// instead of making them.
+    #[arg(long, conflicts_with_all = ["decompositions", "seed"])]
+    decompositions_file: Option<PathBuf>,
     /// Seed of the decompositions.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -53,69 +74,125 @@ pub struct InferArgs {
     /// Draw the map with one pie chart of the marginals per place.
     #[arg(long)]
     svg: Option<PathBuf>,
+    /// Replace existing --out / --svg files.
+    #[arg(long)]
+    force: bool,
+}
+
+/// The evidence rows in file order, duplicates kept (serde's maps keep the last).
+struct Rows(Vec<(String, Vec<f64>)>);
+
+impl<'de> Deserialize<'de> for Rows {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Rows;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an object from place ids to likelihood lists")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<Rows, A::Error> {
+                let mut rows = Vec::new();
+                while let Some(e) = m.next_entry::<String, Vec<f64>>()? {
+                    rows.push(e);
+                }
+                Ok(Rows(rows))
+            }
+        }
+        d.deserialize_map(V)
+    }
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct EvidenceFile {
     format: u32,
-    evidence: BTreeMap<String, Vec<f64>>,
+    evidence: Rows,
 }
 
-/// Line (1-based) of the first occurrence of `"key"` followed by `:` in `text`.
-fn line_of_key(text: &str, key: &str) -> Option<usize> {
+/// Lines (1-based) of every occurrence of `"key"` followed by `:` in `text`.
+fn lines_of_key(text: &str, key: &str) -> Vec<usize> {
     let quoted = format!("\"{key}\"");
     text.lines()
-        .position(|l| {
-            l.find(&quoted)
-                .is_some_and(|i| l[i + quoted.len()..].trim_start().starts_with(':'))
+        .enumerate()
+        .filter(|(_, l)| {
+            l.match_indices(&quoted)
+                .any(|(i, _)| l[i + quoted.len()..].trim_start().starts_with(':'))
         })
-        .map(|i| i + 1)
+        .map(|(i, _)| i + 1)
+        .collect()
 }
 
 /// Parses an evidence file for `map`: one row per place (place order), all ones (no
-/// evidence) where none is given. Errors name the file, the line and the place id.
-pub fn parse_evidence(text: &str, file: &Path, map: &TopoMap) -> Result<Vec<Vec<f64>>> {
-    let f: EvidenceFile = serde_json::from_str(text)
-        .with_context(|| format!("{}: not a valid evidence file", file.display()))?;
+/// evidence) where none is given. Errors name the file, the line and the place id;
+/// a place listed twice is an error; a place the COLD loader dropped is explained.
+pub fn parse_evidence(
+    text: &str,
+    file: &Path,
+    map: &TopoMap,
+    dropped: &Dropped,
+) -> Result<Vec<Vec<f64>>> {
+    let f: EvidenceFile = serde_json::from_str(text).map_err(|e| {
+        anyhow::anyhow!(
+            "--evidence {}:{}:{}: not a valid evidence file: {e}",
+            file.display(),
+            e.line(),
+            e.column()
+        )
+    })?;
     if f.format != EVIDENCE_FORMAT {
         bail!(
-            "{}: evidence format {} (this tool reads format {EVIDENCE_FORMAT})",
+            "--evidence {}: evidence format {} (this tool reads format {EVIDENCE_FORMAT})",
             file.display(),
             f.format
         );
     }
     let c = map.classes.len();
     let mut rows = vec![vec![1.0; c]; map.num_places()];
-    for (key, row) in &f.evidence {
-        let at = || match line_of_key(text, key) {
-            Some(l) => format!("{}:{l}", file.display()),
-            None => file.display().to_string(),
+    let mut seen: BTreeMap<u32, usize> = BTreeMap::new();
+    let mut occurrence: BTreeMap<&str, usize> = BTreeMap::new();
+    for (k, (key, row)) in f.evidence.0.iter().enumerate() {
+        let nth = occurrence.entry(key.as_str()).or_insert(0);
+        let line = lines_of_key(text, key).get(*nth).copied();
+        *nth += 1;
+        let at = match line {
+            Some(l) => format!("--evidence {}:{l}", file.display()),
+            None => format!("--evidence {}", file.display()),
         };
         let id: u32 = key
             .parse()
-            .with_context(|| format!("{}: {key:?} is not a place id", at()))?;
+            .with_context(|| format!("{at}: {key:?} is not a place id"))?;
+        if let Some(&first) = seen.get(&id) {
+            bail!(
+                "{at}: place id {id} is listed twice (first as {:?}); give each place one row",
+                f.evidence.0[first].0
+            );
+        }
+        seen.insert(id, k);
         let Some(i) = map.index_of_id(id) else {
-            bail!("{}: place id {id} is not in map {:?}", at(), map.name);
+            match dropped.reason(id) {
+                Some(why) => bail!(
+                    "{at}: place id {id} was dropped when loading map {:?}: {why}",
+                    map.name
+                ),
+                None => bail!("{at}: place id {id} is not in map {:?}", map.name),
+            }
         };
         if row.len() != c {
             bail!(
-                "{}: place id {id} has {} likelihoods, the map has {c} classes ({})",
-                at(),
+                "{at}: place id {id} has {} likelihoods, the map has {c} classes ({})",
                 row.len(),
                 map.classes.names().join(", ")
             );
         }
         if let Some(k) = row.iter().position(|a| !a.is_finite() || *a < 0.0) {
             bail!(
-                "{}: place id {id}: likelihood of class {} is {} (must be finite and >= 0)",
-                at(),
+                "{at}: place id {id}: likelihood of class {} is {} (must be finite and >= 0)",
                 map.classes.name(k as u16),
                 row[k]
             );
         }
         if row.iter().all(|&a| a == 0.0) {
-            bail!("{}: place id {id}: every likelihood is 0", at());
+            bail!("{at}: place id {id}: every likelihood is 0");
         }
         rows[i] = row.clone();
     }
@@ -124,19 +201,48 @@ pub fn parse_evidence(text: &str, file: &Path, map: &TopoMap) -> Result<Vec<Vec<
 
 /// Runs `graphspn infer`.
 pub fn run(args: InferArgs) -> Result<()> {
-    let map = load_map(&args.map, data_dir(args.data))?;
+    // Every argument and input is checked before any work or write.
+    let mut outputs = Outputs::new(args.force);
+    check_decomposition_count("--decompositions", args.decompositions)?;
+    outputs.input("--model", &args.model);
+    let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
+    if let Some(p) = &args.evidence {
+        outputs.input("--evidence", p);
+    }
+    if let Some(f) = &args.decompositions_file {
+        outputs.input("--decompositions-file", f);
+    }
+    if let Some(p) = &args.out {
+        outputs.file("--out", p)?;
+    }
+    if let Some(p) = &args.svg {
+        outputs.file("--svg", p)?;
+    }
+    let model = load_model(&args.model)?;
+    let loaded = read_map(&map_path)?;
+    let map = &loaded.map;
+    check_component_memory(&model, map, args.decompositions)?;
     let rows = match &args.evidence {
         Some(p) => {
-            let text =
-                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            parse_evidence(&text, p, &map)?
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("--evidence {}", p.display()))?;
+            parse_evidence(&text, p, map, &loaded.dropped)?
         }
         None => vec![vec![1.0; map.classes.len()]; map.num_places()],
     };
-    let (_, inst) = instance_for(&args.model, &map, args.decompositions, args.seed)?;
-    let mut im = InstanceModel::new(inst).context("compiling the instance")?;
-    let ev = Evidence::from_rows(rows);
-    let m = im.marginals(&ev).context("computing marginals")?;
+    let decs = decompositions_for(
+        &model,
+        map,
+        args.decompositions_file.as_deref(),
+        args.decompositions,
+        args.seed,
+    )?;
+    let count = decs.len();
+    // Component-wise evaluation against the shared template networks: memory linear
+    // in places (the explicit instance SPN copies every weight per component).
+    let mut im = component_instance_of(&model, map, decs)?;
+    im.set_all_evidence(&rows).context("setting the evidence")?;
+    let m = im.marginals().context("computing marginals")?;
     let names = map.classes.names();
     let argmax = |row: &[f64]| {
         let mut best = 0;
@@ -156,13 +262,13 @@ pub fn run(args: InferArgs) -> Result<()> {
         "format": 1,
         "map": map.name,
         "classes": names,
-        "decompositions": args.decompositions,
+        "decompositions": count,
         "seed": args.seed,
         "log_likelihood": m.log_likelihood,
         "places": places,
     });
     if args.mpe {
-        let mpe = im.mpe(&[], &ev).context("computing the MPE labelling")?;
+        let mpe = im.mpe(&[]).context("computing the MPE labelling")?;
         let labels: BTreeMap<String, &str> = map
             .places()
             .zip(&mpe.assignment)
@@ -175,26 +281,33 @@ pub fn run(args: InferArgs) -> Result<()> {
         });
     }
     let text = serde_json::to_string_pretty(&doc)? + "\n";
-    match &args.out {
-        Some(p) => {
-            std::fs::write(p, &text).with_context(|| format!("writing {}", p.display()))?;
-            eprintln!(
-                "wrote marginals of {} places to {}",
-                map.num_places(),
-                p.display()
-            );
-        }
-        None => super::common::write_stdout(&text)?,
-    }
-    if let Some(svg) = &args.svg {
+    let svg = args.svg.as_ref().map(|_| {
         let opts = RenderOptions {
             title: Some(format!("{}: GraphSPN marginals", map.name)),
             distributions: Some(&m.probs),
             ..RenderOptions::default()
         };
-        std::fs::write(svg, render_svg(&map, &opts))
-            .with_context(|| format!("writing {}", svg.display()))?;
-        eprintln!("wrote {}", svg.display());
+        render_svg(map, &opts)
+    });
+    let mut files: Vec<(&Path, &[u8])> = Vec::new();
+    if let Some(p) = &args.out {
+        files.push((p, text.as_bytes()));
+    }
+    if let (Some(p), Some(s)) = (&args.svg, &svg) {
+        files.push((p, s.as_bytes()));
+    }
+    write_files(&files)?;
+    if let Some(p) = &args.out {
+        eprintln!(
+            "wrote marginals of {} places to {}",
+            map.num_places(),
+            p.display()
+        );
+    } else {
+        super::common::write_stdout(&text)?;
+    }
+    if let Some(p) = &args.svg {
+        eprintln!("wrote {}", p.display());
     }
     Ok(())
 }

@@ -2,10 +2,14 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Args, ValueEnum};
 
-use super::common::{data_dir, instance_for, load_map};
+use super::common::{
+    check_decomposition_count, data_dir, declare_map, decompositions_for, instance_of, load_model,
+    read_map,
+};
+use super::output::{Outputs, emit};
 
 /// Output format of `graphspn instance`.
 #[derive(Clone, Copy, ValueEnum)]
@@ -18,6 +22,12 @@ pub enum InstanceFormat {
 
 /// Arguments of `graphspn instance`.
 #[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn instance --model generated/demo/model.json --map generated/demo/floor.json --out floor-instance.json
+  graphspn instance --model model.json --map Freiburg/seq1_cloudy1 --format dot --decompositions 1 | dot -Tsvg > spn.svg"
+)]
 pub struct InstanceArgs {
     /// Model file written by `graphspn train`.
     #[arg(long)]
@@ -25,45 +35,67 @@ pub struct InstanceArgs {
     /// The map: a JSON map, a COLD sequence folder, or a sequence name under --data.
     #[arg(long)]
     map: PathBuf,
-    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA).
+    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
     /// Output format.
     #[arg(long, value_enum, default_value = "json")]
     format: InstanceFormat,
-    /// Number of decompositions mixed by the instance.
+    /// Number of decompositions mixed by the instance (1..=1000).
     #[arg(long, default_value_t = 5)]
     decompositions: usize,
+    /// Read the decompositions from this file (written by `graphspn decompose`).
+    #[arg(long, conflicts_with_all = ["decompositions", "seed"])]
+    decompositions_file: Option<PathBuf>,
     /// Seed of the decompositions.
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Output file (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Replace an existing --out file.
+    #[arg(long)]
+    force: bool,
 }
 
 /// Runs `graphspn instance`.
 pub fn run(args: InstanceArgs) -> Result<()> {
-    let map = load_map(&args.map, data_dir(args.data))?;
-    let (model, inst) = instance_for(&args.model, &map, args.decompositions, args.seed)?;
+    let mut outputs = Outputs::new(args.force);
+    check_decomposition_count("--decompositions", args.decompositions)?;
+    outputs.input("--model", &args.model);
+    let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
+    if let Some(f) = &args.decompositions_file {
+        outputs.input("--decompositions-file", f);
+    }
+    if let Some(p) = &args.out {
+        outputs.file("--out", p)?;
+    }
+    let model = load_model(&args.model)?;
+    let loaded = read_map(&map_path)?;
+    let map = &loaded.map;
+    let decs = decompositions_for(
+        &model,
+        map,
+        args.decompositions_file.as_deref(),
+        args.decompositions,
+        args.seed,
+    )?;
+    let inst = instance_of(&model, map, decs)?;
     let names: Vec<String> = model.templates.iter().map(|t| t.name.clone()).collect();
     let text = match args.format {
-        InstanceFormat::Json => inst.to_json(&map, &names),
-        InstanceFormat::Dot => inst.to_dot(&map),
+        InstanceFormat::Json => inst.to_json(map, &names),
+        InstanceFormat::Dot => inst.to_dot(map),
     };
-    match &args.out {
-        Some(p) => {
-            std::fs::write(p, &text).with_context(|| format!("writing {}", p.display()))?;
-            eprintln!(
-                "wrote the instance of {} ({} places, {} nodes, {} edges) to {}",
-                map.name,
-                map.num_places(),
-                inst.spn.nodes.len(),
-                inst.spn.num_edges(),
-                p.display()
-            );
-        }
-        None => super::common::write_stdout(&text)?,
+    emit(args.out.as_deref(), &text)?;
+    if let Some(p) = &args.out {
+        eprintln!(
+            "wrote the instance of {} ({} places, {} nodes, {} edges) to {}",
+            map.name,
+            map.num_places(),
+            inst.spn.nodes.len(),
+            inst.spn.num_edges(),
+            p.display()
+        );
     }
     Ok(())
 }

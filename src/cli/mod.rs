@@ -2,8 +2,11 @@
 
 pub mod common;
 pub mod compile;
+pub mod decompose;
 pub mod generated_check;
 pub mod infer;
 pub mod instance;
+pub mod maps;
+pub mod output;
 pub mod reproduce;
 pub mod train;

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::decompose::DecompositionParams;
 use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
@@ -14,17 +14,29 @@ use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
 use std::collections::BTreeMap;
 
-use super::common::require_data_dir;
+use super::common::{check_buildings, check_decomposition_count, require_data_dir};
+use super::output::{Outputs, write_folder};
 
 /// Arguments of `graphspn reproduce`.
 #[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn reproduce --out out/
+  graphspn reproduce --out out/ --quick
+  graphspn reproduce --out out/ --levels 2,5 --rounds 1 --force"
+)]
 pub struct ReproduceArgs {
-    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA).
+    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Output folder (REPORT.md, results.json, *.svg).
+    /// Output folder (REPORT.md, results.json, *.svg); created if missing, must be
+    /// empty unless --force.
     #[arg(long)]
     out: PathBuf,
+    /// Write into a non-empty --out folder, replacing files of the same names.
+    #[arg(long)]
+    force: bool,
     /// Master seed of every random step.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -77,13 +89,21 @@ pub struct ReproduceArgs {
 
 /// Arguments of `graphspn validate`.
 #[derive(Args)]
+#[command(after_help = "Examples:
+  graphspn validate --out val/
+  graphspn validate --out val/ --buildings Stockholm --tiny-grid
+  graphspn reproduce --out out/ --settings val/validation.json")]
 pub struct ValidateArgs {
-    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA).
+    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Output folder (VALIDATION.md, validation.json).
+    /// Output folder (VALIDATION.md, validation.json); created if missing, must be
+    /// empty unless --force.
     #[arg(long)]
     out: PathBuf,
+    /// Write into a non-empty --out folder, replacing files of the same names.
+    #[arg(long)]
+    force: bool,
     /// Master seed.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -98,19 +118,21 @@ pub struct ValidateArgs {
 /// Runs `graphspn validate`: the leave-one-training-building-out search of every
 /// model's settings, per test building; writes validation.json and VALIDATION.md.
 pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
+    // Every argument and the output folder are checked before any computation.
     let data = require_data_dir(args.data)?;
-    let start = Instant::now();
+    let mut outputs = Outputs::new(args.force);
+    outputs.input("--data", &data);
+    outputs.folder("--out", &args.out)?;
     let mut cfg = ReproduceConfig::full(args.seed);
     if args.tiny_grid {
         cfg.grid = ValidationGrid::tiny();
     }
-    let all = load_data(&data)?;
     let buildings = args.buildings.unwrap_or(cfg.test_buildings.clone());
+    check_buildings("--buildings", &buildings)?;
+    let start = Instant::now();
+    let all = load_data(&data)?;
     let mut vals = Vec::new();
     for b in &buildings {
-        if !all.contains_key(b) {
-            anyhow::bail!("--buildings {b}: no such building");
-        }
         eprintln!("validating the settings for test building {b} (on the other two buildings)");
         vals.push(validate_for(&all, b, &cfg)?);
     }
@@ -118,19 +140,17 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
         .iter()
         .map(|v| (v.test_building.clone(), v.chosen.clone()))
         .collect();
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
     let json = serde_json::json!({ "settings": settings, "validation": vals });
-    let p = args.out.join("validation.json");
-    std::fs::write(&p, serde_json::to_string_pretty(&json)?)
-        .with_context(|| format!("writing {}", p.display()))?;
     let md = validation_markdown(&vals, start.elapsed().as_secs_f64());
-    let p = args.out.join("VALIDATION.md");
-    std::fs::write(&p, md).with_context(|| format!("writing {}", p.display()))?;
+    write_folder(&args.out, |dir| {
+        std::fs::write(dir.join("validation.json"), serde_json::to_string_pretty(&json)?)?;
+        std::fs::write(dir.join("VALIDATION.md"), &md)?;
+        Ok(())
+    })?;
     eprintln!(
         "validation done in {:.1} s; wrote {}",
         start.elapsed().as_secs_f64(),
-        p.display()
+        args.out.join("VALIDATION.md").display()
     );
     Ok(())
 }
@@ -150,7 +170,11 @@ fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSetting
 
 /// Runs `graphspn reproduce`.
 pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
+    // Every argument and the output folder are checked before any computation.
     let data = require_data_dir(args.data)?;
+    let mut outputs = Outputs::new(args.force);
+    outputs.input("--data", &data);
+    outputs.folder("--out", &args.out)?;
     let mut cfg = if args.quick {
         ReproduceConfig::quick(args.seed)
     } else {
@@ -160,36 +184,58 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
         cfg.wrong_draw = WrongClassDraw::AnyClass;
     }
     if let Some(d) = args.decompositions {
+        check_decomposition_count("--decompositions", d)?;
         let cands = args.candidates.unwrap_or((3 * d).max(15));
+        if cands < d {
+            bail!("--candidates {cands}: must be at least --decompositions {d}");
+        }
         cfg.decomposition = DecompositionParams {
             count: d,
             candidates: cands,
             seed: 0,
         };
     } else if let Some(c) = args.candidates {
+        if c < cfg.decomposition.count {
+            bail!(
+                "--candidates {c}: must be at least the {} decompositions kept",
+                cfg.decomposition.count
+            );
+        }
         cfg.decomposition.candidates = c;
     }
-    let start = Instant::now();
-    let mut all = load_data(&data)?;
     if let Some(x) = &args.exclude {
-        if all.remove(x).is_none() {
-            anyhow::bail!("--exclude {x}: no such building");
-        }
+        check_buildings("--exclude", std::slice::from_ref(x))?;
         cfg.test_buildings.retain(|b| b != x);
     }
     if let Some(b) = args.buildings {
+        check_buildings("--buildings", &b)?;
+        if let Some(x) = args.exclude.as_ref().filter(|x| b.contains(x)) {
+            bail!(
+                "--buildings {}: building {x} is also given to --exclude",
+                b.join(",")
+            );
+        }
         cfg.test_buildings = b;
     }
     if let Some(l) = args.levels {
+        if l.is_empty() {
+            bail!("--levels: give at least one noise level");
+        }
         cfg.levels = l
             .into_iter()
-            .map(NoiseLevel::new)
+            .map(|x| NoiseLevel::new(x).with_context(|| format!("--levels {x}")))
             .collect::<Result<_, _>>()?;
     }
     if let Some(m) = args.maps {
+        if m == 0 {
+            bail!("--maps 0: test at least one map per building");
+        }
         cfg.maps_per_building = m;
     }
     if let Some(r) = args.rounds {
+        if r == 0 {
+            bail!("--rounds 0: run at least one round");
+        }
         cfg.rounds = r;
     }
     if args.no_novelty {
@@ -204,7 +250,10 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     if let Some(t) = &args.training {
         let mut v = cfg.training.to_value();
         let patch: serde_json::Value = serde_json::from_str(t).context("--training JSON")?;
-        if let (Some(obj), Some(p)) = (v.as_object_mut(), patch.as_object()) {
+        let Some(p) = patch.as_object() else {
+            bail!("--training {t}: give a JSON object, e.g. '{{\"em\":\"soft\"}}'");
+        };
+        if let Some(obj) = v.as_object_mut() {
             for (k, x) in p {
                 obj.insert(k.clone(), x.clone());
             }
@@ -214,11 +263,18 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     if args.mrf_pmi {
         cfg.cooccurrence.normalisation = Normalisation::Pmi;
     }
+    let start = Instant::now();
+    let mut all = load_data(&data)?;
+    if let Some(x) = &args.exclude {
+        all.remove(x);
+    }
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
     let check =
         super::generated_check::section(args.seed, if args.quick { 1 } else { cfg.rounds })?;
-    write_outputs(&rep, &setups, &cfg, &args.out, &check)?;
+    write_folder(&args.out, |dir| {
+        Ok(write_outputs(&rep, &setups, &cfg, dir, &check)?)
+    })?;
     eprintln!(
         "reproduction done in {:.1} s; wrote {}",
         start.elapsed().as_secs_f64(),

@@ -3,20 +3,27 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use graphspn_compiler::learn::{Progress, TrainingSettings, train_model};
 use graphspn_compiler::template::Template;
 
-use super::common::{load_buildings, require_data_dir};
+use super::common::{check_buildings, load_buildings, require_data_dir};
+use super::output::{Outputs, write_files};
 
 /// Arguments of `graphspn train`.
 #[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn train --out model.json
+  graphspn train --buildings Freiburg,Saarbrucken,Stockholm --epochs 20 --seed 3 --out model.json --force"
+)]
 pub struct TrainArgs {
-    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA).
+    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Buildings to train on, comma-separated.
+    /// Buildings to train on, comma-separated, each at most once.
     #[arg(long, value_delimiter = ',', default_value = "Freiburg,Saarbrucken")]
     buildings: Vec<String>,
     /// Output model file (JSON).
@@ -25,12 +32,12 @@ pub struct TrainArgs {
     /// Master seed of every random step.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// EM epochs.
-    #[arg(long)]
-    epochs: Option<usize>,
-    /// Decompositions of each training map per template.
-    #[arg(long)]
-    decompositions_per_map: Option<usize>,
+    /// EM epochs (at least 1).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    epochs: Option<u32>,
+    /// Decompositions of each training map per template (at least 1).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    decompositions_per_map: Option<u32>,
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
@@ -38,43 +45,42 @@ pub struct TrainArgs {
 
 /// Runs `graphspn train`.
 pub fn run(args: TrainArgs) -> Result<()> {
-    if args.out.exists() && !args.force {
-        anyhow::bail!("{} exists: pass --force to replace it", args.out.display());
-    }
+    check_buildings("--buildings", &args.buildings)?;
     let data = require_data_dir(args.data)?;
+    let mut outputs = Outputs::new(args.force);
+    outputs.input("--data", &data);
+    outputs.file("--out", &args.out)?;
     let maps = load_buildings(&data, &args.buildings)?;
     let mut settings = TrainingSettings {
         seed: args.seed,
         ..TrainingSettings::default()
     };
     if let Some(e) = args.epochs {
-        settings.epochs = e;
+        settings.epochs = e as usize;
     }
     if let Some(d) = args.decompositions_per_map {
-        settings.decompositions_per_map = d;
+        settings.decompositions_per_map = d as usize;
     }
     let start = Instant::now();
     let (model, trainings) = train_model(&maps, &Template::paper_set(), &settings, Progress::Auto)?;
     let elapsed = start.elapsed();
     for t in &trainings {
         match &t.report {
-            Some(r) => eprintln!(
-                "{:>9}: {:>6} samples ({} distinct after augmentation), log-likelihood per sample {:.4} -> {:.4}",
-                t.template,
-                t.samples,
-                r.num_distinct,
-                r.initial_log_likelihood,
-                r.log_likelihood_per_epoch
-                    .last()
-                    .copied()
-                    .unwrap_or(f64::NAN)
-            ),
+            Some(r) => match r.log_likelihood_per_epoch.last() {
+                Some(last) => eprintln!(
+                    "{:>9}: {:>6} samples ({} distinct after augmentation), log-likelihood per sample {:.4} -> {:.4}",
+                    t.template, t.samples, r.num_distinct, r.initial_log_likelihood, last
+                ),
+                None => eprintln!(
+                    "{:>9}: {:>6} samples ({} distinct after augmentation), log-likelihood per sample {:.4} (no epoch run)",
+                    t.template, t.samples, r.num_distinct, r.initial_log_likelihood
+                ),
+            },
             None => eprintln!("{:>9}: uniform", t.template),
         }
     }
-    model
-        .save(&args.out)
-        .with_context(|| format!("writing {}", args.out.display()))?;
+    let text = model.to_json()?;
+    write_files(&[(&args.out, text.as_bytes())])?;
     eprintln!(
         "trained on {} maps in {:.2} s; wrote {}",
         maps.len(),

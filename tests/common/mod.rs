@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use graphspn::codegen::{CodegenOptions, DEFAULT_STACK_BYTES, Precision, generate};
+use graphspn::codegen::{CodegenOptions, Precision, Vectorisation, generate};
 use graphspn::decompose::Decomposition;
 use graphspn::instance::Instance;
 use graphspn::interpreter::{BATCH, Evaluator, Evidence, InferenceError};
@@ -25,30 +25,40 @@ use rayon::prelude::*;
 pub struct Variant {
     /// Scalar type of the generated code.
     pub precision: Precision,
-    /// Stack budget of the generated marginals (`0`: always the two-pass form).
-    pub max_stack_bytes: usize,
+    /// Scalar code (as on microcontrollers) or SIMD lane groups.
+    pub vectorisation: Vectorisation,
 }
 
 impl Variant {
-    /// `f32` code with the default stack budget.
+    /// `f32` code in SIMD lane groups (the host's form).
     pub const F32: Variant = Variant {
         precision: Precision::F32,
-        max_stack_bytes: DEFAULT_STACK_BYTES,
+        vectorisation: Vectorisation::Simd,
     };
-    /// `f64` code with the default stack budget.
+    /// `f64` code in SIMD lane groups.
     pub const F64: Variant = Variant {
         precision: Precision::F64,
-        max_stack_bytes: DEFAULT_STACK_BYTES,
+        vectorisation: Vectorisation::Simd,
+    };
+    /// `f32` scalar code (the microcontroller form).
+    pub const F32_SCALAR: Variant = Variant {
+        precision: Precision::F32,
+        vectorisation: Vectorisation::Scalar,
+    };
+    /// `f64` scalar code.
+    pub const F64_SCALAR: Variant = Variant {
+        precision: Precision::F64,
+        vectorisation: Vectorisation::Scalar,
     };
 
-    /// Module name suffix, e.g. `f32`, `f64_two_pass`.
+    /// Module name suffix, e.g. `f32`, `f64_scalar`.
     fn suffix(&self) -> String {
         let p = match self.precision {
             Precision::F32 => "f32",
             Precision::F64 => "f64",
         };
-        if self.max_stack_bytes == 0 {
-            format!("{p}_two_pass")
+        if self.vectorisation == Vectorisation::Scalar {
+            format!("{p}_scalar")
         } else {
             p.to_string()
         }
@@ -218,9 +228,42 @@ where
         }
     }
     let secs = start.elapsed().as_secs_f64();
+    // The streaming state on the same vectors: every 4th vector set whole, otherwise
+    // a few of its rows streamed into the state; the state's answers must equal the
+    // stateless functions on the state's evidence.
+    let tol = if core::mem::size_of::<M::Scalar>() == 4 { 1e-4 } else { 1e-9 };
+    let mut st = M::NEW_STATE;
+    let (mut sm, mut fm) = (vec![M::ZERO_ROW; n], vec![M::ZERO_ROW; n]);
+    for (v, ev) in evs.iter().enumerate().take(STATE_VECTORS) {
+        if v % 4 == 0 {
+            M::set_all(&mut st, ev).expect("state set_all");
+        } else {
+            for k in 0..3 {
+                let p = (v * 7 + k * 13) % n;
+                M::set_evidence(&mut st, p, &ev[p]).expect("state set_evidence");
+            }
+        }
+        let e: Vec<M::Row> = M::state_evidence(&st).to_vec();
+        let (sl, fl) = match (M::state_marginals(&mut st, &mut sm), M::marginals(&e, &mut fm)) {
+            (Ok(a), Ok(b)) => (a, b),
+            (Err(a), Err(b)) => { assert_eq!(a, b, "{name} vector {v}"); continue; }
+            (a, b) => panic!("{name} vector {v}: state {a:?} vs stateless {b:?}"),
+        };
+        let (sl, fl): (f64, f64) = (sl.into(), fl.into());
+        assert!((sl - fl).abs() <= tol * fl.abs().max(1.0), "{name} vector {v}: state ll {sl} vs stateless {fl}");
+        for (a, b) in sm.iter().zip(&fm) {
+            for (&x, &y) in a.as_ref().iter().zip(b.as_ref()) {
+                let (x, y): (f64, f64) = (x.into(), y.into());
+                assert!((x - y).abs() <= tol, "{name} vector {v}: state marginal {x} vs stateless {y}");
+            }
+        }
+    }
     std::fs::write(dir.join(format!("{name}.out")), out).expect("write results");
     let _ = writeln!(std::io::stdout(), "{name} {count} {secs}");
 }
+
+/// Vectors streamed into the state (the first ones of each module).
+const STATE_VECTORS: usize = 1000;
 
 trait FromF64 { fn from_f64(x: f64) -> Self; }
 impl FromF64 for f32 { fn from_f64(x: f64) -> Self { x as f32 } }
@@ -244,6 +287,17 @@ fn target_dir() -> PathBuf {
 /// Writes a crate holding every module, builds it in release and returns the binary.
 /// Panics with rustc's messages if the build fails or warns.
 pub fn build_crate(dir: &Path, crate_name: &str, modules: &[(String, String)]) -> PathBuf {
+    build_crate_with(dir, crate_name, modules, MAIN)
+}
+
+/// [`build_crate`] with another `main` source: `DISPATCH` in it is replaced by one
+/// `s.spawn(|| run::<module::Map>(dir, "module"));` line per module.
+pub fn build_crate_with(
+    dir: &Path,
+    crate_name: &str,
+    modules: &[(String, String)],
+    main: &str,
+) -> PathBuf {
     let runtime = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("runtime");
     std::fs::write(
         dir.join("Cargo.toml"),
@@ -263,7 +317,7 @@ pub fn build_crate(dir: &Path, crate_name: &str, modules: &[(String, String)]) -
     }
     std::fs::write(
         dir.join("src/main.rs"),
-        mods + &MAIN.replace("DISPATCH", &dispatch),
+        mods + &main.replace("DISPATCH", &dispatch),
     )
     .unwrap();
     let start = Instant::now();
@@ -312,7 +366,7 @@ pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
         for variant in &case.variants {
             let opts = CodegenOptions {
                 precision: variant.precision,
-                max_stack_bytes: variant.max_stack_bytes,
+                vectorisation: variant.vectorisation,
                 ..Default::default()
             };
             let name = case.module(variant);

@@ -49,70 +49,15 @@ pub const MAX_ASSIGNMENTS: u64 = 2_000_000;
 /// symmetric Star: 10^5 × 4,101 nodes, about 2 s in an optimised build).
 pub const MAX_WORK: u64 = 2_000_000_000;
 
-/// Checks an SPN's structure: node ids in range and topological, leaves in range,
-/// weights finite and non-negative, one weight per child.
+/// Checks a template SPN with the check every path shares
+/// ([`crate::learn::check_template_spn`]: variables, classes, ids, order, weights,
+/// completeness, decomposability); weights need not add up to 1.
 pub fn check_spn(t: usize, spn: &Spn, num_vars: usize, classes: usize) -> Result<(), CodegenError> {
-    let bad = |node: usize, what: String| CodegenError::BadSpn {
+    crate::learn::check_template_spn(spn, num_vars, classes).map_err(|e| CodegenError::BadSpn {
         template: t,
-        node,
-        what,
-    };
-    if spn.classes.len() != num_vars {
-        return Err(bad(
-            0,
-            format!(
-                "has {} variables, the template has {num_vars} nodes",
-                spn.classes.len()
-            ),
-        ));
-    }
-    if let Some(&c) = spn.classes.iter().find(|&&c| c as usize != classes) {
-        return Err(bad(
-            0,
-            format!("a variable has {c} classes, the model has {classes}"),
-        ));
-    }
-    if spn.nodes.is_empty() || spn.root as usize >= spn.nodes.len() {
-        return Err(bad(spn.root as usize, "root out of range".into()));
-    }
-    for (i, n) in spn.nodes.iter().enumerate() {
-        match n {
-            Node::Leaf { var, class } => {
-                if *var as usize >= num_vars || *class as usize >= classes {
-                    return Err(bad(
-                        i,
-                        format!("leaf (var {var}, class {class}) out of range"),
-                    ));
-                }
-            }
-            Node::Sum { children, weights } => {
-                if children.len() != weights.len() {
-                    return Err(bad(
-                        i,
-                        "sum has a different number of children and weights".into(),
-                    ));
-                }
-                if let Some(w) = weights.iter().find(|w| !w.is_finite() || **w < 0.0) {
-                    return Err(bad(i, format!("weight {w} is not finite and non-negative")));
-                }
-                if children.is_empty() || children.iter().any(|&c| c as usize >= i) {
-                    return Err(bad(
-                        i,
-                        "sum children must be non-empty and precede it".into(),
-                    ));
-                }
-            }
-            Node::Product { children } => {
-                if children.is_empty() || children.iter().any(|&c| c as usize >= i) {
-                    return Err(bad(
-                        i,
-                        "product children must be non-empty and precede it".into(),
-                    ));
-                }
-            }
-        }
-    }
-    Ok(())
+        node: e.node().map_or(0, |n| n as usize),
+        what: e.to_string(),
+    })
 }
 
 /// Checks model, map and decompositions against each other.

@@ -9,7 +9,9 @@ use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
-use super::{CodegenError, CodegenOptions, Precision, generate};
+use super::{
+    CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation, generate_with_report,
+};
 use crate::decompose::file::DecompositionFileError;
 use crate::decompose::{DecomposeError, Decomposition, DecompositionParams, decompose_best};
 use crate::learn::{Model, ModelFileError};
@@ -250,8 +252,8 @@ pub struct Builder {
     module_name: String,
     out_dir: Option<PathBuf>,
     out_file: Option<PathBuf>,
-    chunk_size: usize,
-    max_stack_bytes: usize,
+    vectorisation: Option<Vectorisation>,
+    max_stack_bytes: Option<usize>,
     cargo_lines: bool,
     overwrite: bool,
 }
@@ -269,8 +271,8 @@ impl Builder {
             module_name: "map".into(),
             out_dir: None,
             out_file: None,
-            chunk_size: CodegenOptions::default().chunk_size,
-            max_stack_bytes: CodegenOptions::default().max_stack_bytes,
+            vectorisation: None,
+            max_stack_bytes: None,
             cargo_lines: true,
             overwrite: false,
         }
@@ -345,17 +347,20 @@ impl Builder {
         self
     }
 
-    /// Components per generated chunk function (default 64).
-    pub fn chunk_size(mut self, n: usize) -> Self {
-        self.chunk_size = n;
+    /// Scalar code or SIMD lane groups. Default: chosen for the crate's compilation
+    /// target from `CARGO_CFG_TARGET_ARCH` (set by cargo for build scripts, see
+    /// [`Vectorisation::for_arch`]): scalar on microcontrollers, SIMD on x86-64 and
+    /// AArch64; SIMD outside a build script.
+    pub fn vectorisation(mut self, v: Vectorisation) -> Self {
+        self.vectorisation = Some(v);
         self
     }
 
-    /// Largest stack scratch (bytes) the generated `marginals` may use (default
-    /// 64 KiB; see [`CodegenOptions::max_stack_bytes`]). Firmware with a small stack
-    /// sets it lower: above the budget `marginals` takes two passes instead of one.
+    /// Stack budget (bytes; default 16 KiB for scalar code, 64 KiB for SIMD code, see
+    /// [`CodegenOptions::max_stack_bytes`]): generation fails when a generated entry
+    /// point could need more.
     pub fn max_stack_bytes(mut self, bytes: usize) -> Self {
-        self.max_stack_bytes = bytes;
+        self.max_stack_bytes = Some(bytes);
         self
     }
 
@@ -406,7 +411,10 @@ impl Builder {
     fn options(&self) -> CodegenOptions {
         CodegenOptions {
             precision: self.precision,
-            chunk_size: self.chunk_size,
+            vectorisation: self.vectorisation.unwrap_or_else(|| {
+                std::env::var("CARGO_CFG_TARGET_ARCH")
+                    .map_or(Vectorisation::Simd, |a| Vectorisation::for_arch(&a))
+            }),
             max_stack_bytes: self.max_stack_bytes,
             model_label: self
                 .model
@@ -417,7 +425,13 @@ impl Builder {
 
     /// The generated source for already loaded inputs (pure).
     pub fn generate_from(&self, inputs: &Inputs) -> Result<String, BuildError> {
-        generate(
+        self.report_from(inputs).map(|(s, _)| s)
+    }
+
+    /// The generated source and the generator's report (stack per entry point, state
+    /// and table bytes, multiply-adds per call) for already loaded inputs.
+    pub fn report_from(&self, inputs: &Inputs) -> Result<(String, CodeReport), BuildError> {
+        generate_with_report(
             &inputs.model,
             &inputs.map,
             &inputs.decompositions,
@@ -476,12 +490,18 @@ impl Builder {
     /// changed (no `cargo:` lines). Returns the output path. Refuses to replace a file
     /// without the `@generated` line unless [`Builder::overwrite`] allows it.
     pub fn write_from(&self, inputs: &Inputs) -> Result<PathBuf, BuildError> {
+        self.write_report_from(inputs).map(|(p, _)| p)
+    }
+
+    /// [`Builder::write_from`], also returning the generator's [`CodeReport`].
+    pub fn write_report_from(&self, inputs: &Inputs) -> Result<(PathBuf, CodeReport), BuildError> {
         let out = self.output_path()?;
         if !self.overwrite {
             check_replaceable(&out)?;
         }
-        write_if_changed(&out, &self.generate_from(inputs)?)?;
-        Ok(out)
+        let (text, report) = self.report_from(inputs)?;
+        write_if_changed(&out, &text)?;
+        Ok((out, report))
     }
 }
 

@@ -1,8 +1,8 @@
 //! The greedy random decomposition (Alg. 2) and the best-of-N scheme.
 
+use crate::par::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 
 use super::{Component, DecomposeError, Decomposition};
 use crate::map::TopoMap;
@@ -136,7 +136,7 @@ pub fn decompose<R: Rng + ?Sized>(
     Ok(Decomposition { components })
 }
 
-/// The authors' scheme (REFERENCE-FACTS.md §2): `params.candidates` random
+/// The authors' scheme (as in their published code): `params.candidates` random
 /// greedy partitions by the largest template, scored by its coverage (number of
 /// places inside it); the `params.count` best kept (ties: lower candidate
 /// number first), each completed with the smaller templates. Best first.

@@ -1,5 +1,5 @@
 //! Simulated noisy local evidence, exactly per the paper's protocol
-//! (REFERENCE-FACTS.md §4, the paper's "Experimental Procedure"), and the
+//! (the paper's "Experimental Procedure"; see docs/REPRODUCTION.md), and the
 //! statistics of the paper's Table 1.
 //!
 //! For one map and one seed:
@@ -92,7 +92,7 @@ impl NoiseLevel {
         [1, 2, 3, 4, 5, 6].map(NoiseLevel)
     }
 
-    /// The paper's parameters for this level (REFERENCE-FACTS.md §4 table).
+    /// The paper's parameters for this level (the paper's noise-level table).
     pub fn params(self) -> NoiseParams {
         let hic = (0.5, 0.7);
         let hiic = (0.5, 0.7);

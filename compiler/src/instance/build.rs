@@ -377,7 +377,8 @@ pub(super) fn edge_set(map: &TopoMap) -> BTreeSet<(usize, usize)> {
         .collect()
 }
 
-fn check_inputs(
+/// Checks a model, map and decompositions fit together (shared with the component evaluator).
+pub(super) fn check_inputs(
     model: &Model,
     map: &TopoMap,
     decompositions: &[Decomposition],

@@ -19,13 +19,18 @@
 //!   place through the exact interpreter;
 //! - [`Instance::update`] / [`Instance::grow`] / [`grow_decompositions`]: incremental
 //!   updates when the map grows, keeping untouched template copies;
+//! - [`ComponentInstance`]: the same queries evaluated component by component against
+//!   the shared template networks (memory linear in places, no explicit SPN), with
+//!   incremental evidence updates and growth;
 //! - [`Instance::to_json`] / [`Instance::to_dot`]: export.
 
 mod build;
+mod components;
 mod export;
 mod grow;
 mod query;
 
 pub use build::{CopyStats, Instance, InstanceError, InstanceParams};
+pub use components::{ComponentInstance, estimated_component_bytes, estimated_explicit_bytes};
 pub use grow::grow_decompositions;
 pub use query::{InstanceModel, InstanceQueryError};

@@ -30,6 +30,22 @@ pub enum InstanceQueryError {
     /// The interpreter rejected the query (bad or zero-probability evidence).
     #[error(transparent)]
     Inference(#[from] InferenceError),
+    /// A template SPN of the model is invalid.
+    #[error("the model's SPN for template {template:?} is invalid: {source}")]
+    InvalidTemplateSpn {
+        /// Template name.
+        template: String,
+        /// What is wrong.
+        source: SpnError,
+    },
+    /// A place index outside the instance.
+    #[error("place index {place} is out of range (the instance has {count} places)")]
+    PlaceOutOfRange {
+        /// The index given.
+        place: usize,
+        /// Number of places.
+        count: usize,
+    },
     /// A labelling has the wrong length or a class out of range.
     #[error("labelling: {0}")]
     BadLabels(String),

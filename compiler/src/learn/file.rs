@@ -11,7 +11,9 @@ use serde::Deserialize;
 
 use super::model::{MODEL_FORMAT, Model};
 use super::settings::TrainingSettings;
-use crate::spn::Node;
+use crate::spn::validate::WEIGHT_SUM_TOLERANCE;
+use crate::spn::{Node, NodeId, Spn, SpnError};
+use crate::template::Template;
 
 /// Why a model file could not be read or written.
 #[derive(Debug, thiserror::Error)]
@@ -48,6 +50,18 @@ pub enum ModelFileError {
         /// [`MODEL_FORMAT`].
         expected: u32,
     },
+    /// A template SPN is malformed (see [`check_template_spn`]).
+    #[error("{source_name}: template {template:?} (SPN {index}): {source}")]
+    TemplateSpn {
+        /// File name (or `<string>`).
+        source_name: String,
+        /// The template's name.
+        template: String,
+        /// Position of the template (and its SPN) in the model.
+        index: usize,
+        /// What is wrong, naming the node (boxed: keeps the error small).
+        source: Box<TemplateSpnError>,
+    },
     /// The model is inconsistent or holds a value JSON cannot represent.
     #[error("{source_name}: {message}")]
     Invalid {
@@ -72,15 +86,107 @@ fn parse_error(source_name: &str, e: serde_json::Error) -> ModelFileError {
     }
 }
 
+/// What is wrong with one template SPN of a model ([`check_template_spn`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TemplateSpnError {
+    /// The SPN's variables do not match the template's nodes.
+    #[error("the SPN has {found} variables, the template has {expected} nodes")]
+    VariableCount {
+        /// Variables of the SPN.
+        found: usize,
+        /// Nodes of the template.
+        expected: usize,
+    },
+    /// A variable has another number of classes than the model.
+    #[error("variable {var} has {found} classes, the model has {expected}")]
+    ClassCount {
+        /// The variable.
+        var: usize,
+        /// Its classes.
+        found: u32,
+        /// Classes of the model.
+        expected: usize,
+    },
+    /// A structural error: ids, order, weights, completeness, decomposability.
+    #[error(transparent)]
+    Structure(#[from] SpnError),
+}
+
+impl TemplateSpnError {
+    /// The SPN node the error is about, when there is one.
+    pub fn node(&self) -> Option<NodeId> {
+        match self {
+            TemplateSpnError::Structure(e) => e.node(),
+            _ => None,
+        }
+    }
+}
+
+/// The one check every path applies to a template SPN (`Model::load`, `infer`,
+/// `instance`, `compile`): `num_vars` variables of `classes` classes each, and every
+/// structural invariant of [`Spn::validate_unnormalised`] (ids in range and in
+/// topological order, leaves in range, finite non-negative weights with one per child
+/// and not all zero, completeness, decomposability, every node reachable, every
+/// variable in the root's scope).
+///
+/// Weights need not add up to 1 here: a model file's weights are relative and
+/// [`Model::from_json_named`] rescales each sum to total 1 (see [`normalise_weights`]).
+pub fn check_template_spn(
+    spn: &Spn,
+    num_vars: usize,
+    classes: usize,
+) -> Result<(), TemplateSpnError> {
+    if spn.num_vars() != num_vars {
+        return Err(TemplateSpnError::VariableCount {
+            found: spn.num_vars(),
+            expected: num_vars,
+        });
+    }
+    if let Some(var) = spn.classes.iter().position(|&c| c as usize != classes) {
+        return Err(TemplateSpnError::ClassCount {
+            var,
+            found: spn.classes[var],
+            expected: classes,
+        });
+    }
+    spn.validate_unnormalised()?;
+    Ok(())
+}
+
+/// Rescales every sum of `spn` whose weights do not add up to 1 within
+/// [`WEIGHT_SUM_TOLERANCE`] so that they do; sums already within it are left bit for
+/// bit. Weights are relative: `[2, 6]` means `[0.25, 0.75]`. Returns the number of
+/// sums rescaled. Call on a checked SPN ([`check_template_spn`]): every sum then has
+/// finite, non-negative weights that are not all zero.
+pub fn normalise_weights(spn: &mut Spn) -> usize {
+    let mut rescaled = 0;
+    for node in &mut spn.nodes {
+        if let Node::Sum { weights, .. } = node {
+            let total: f64 = weights.iter().sum();
+            if total > 0.0 && (total - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
+                for w in weights.iter_mut() {
+                    *w /= total;
+                }
+                rescaled += 1;
+            }
+        }
+    }
+    rescaled
+}
+
 impl Model {
-    /// Checks what the file format relies on: one SPN per template, each SPN's
-    /// variable count equal to its template's node count and every variable with
-    /// `classes.len()` classes, finite weights.
+    /// Checks everything the file format and every consumer rely on: classes, one
+    /// valid template per SPN (unique names, edges in range, connected), and each
+    /// template SPN by [`check_template_spn`]. Errors name `source_name`, the
+    /// template and the SPN node.
     pub fn check(&self, source_name: &str) -> Result<(), ModelFileError> {
         let invalid = |message: String| ModelFileError::Invalid {
             source_name: source_name.to_string(),
             message,
         };
+        if self.classes.is_empty() {
+            return Err(invalid("the model has no classes".into()));
+        }
         if self.spns.len() != self.templates.len() {
             return Err(invalid(format!(
                 "{} templates but {} SPNs",
@@ -88,37 +194,33 @@ impl Model {
                 self.spns.len()
             )));
         }
-        for (t, spn) in self.templates.iter().zip(&self.spns) {
-            if spn.num_vars() != t.num_nodes {
+        for (i, t) in self.templates.iter().enumerate() {
+            if self.templates[..i].iter().any(|o| o.name == t.name) {
                 return Err(invalid(format!(
-                    "SPN of template {:?} has {} variables, the template has {} nodes",
-                    t.name,
-                    spn.num_vars(),
-                    t.num_nodes
+                    "template {i} is named {:?} like an earlier one",
+                    t.name
                 )));
             }
-            if let Some(v) = spn
-                .classes
-                .iter()
-                .position(|&c| c as usize != self.classes.len())
-            {
-                return Err(invalid(format!(
-                    "SPN of template {:?}: variable {v} has {} classes, the model has {}",
-                    t.name,
-                    spn.classes[v],
-                    self.classes.len()
-                )));
-            }
-            for (id, n) in spn.nodes.iter().enumerate() {
-                if let Node::Sum { weights, .. } = n
-                    && let Some(w) = weights.iter().find(|w| !w.is_finite() || **w < 0.0)
-                {
+            match Template::custom(t.name.clone(), t.num_nodes, &t.edges) {
+                Ok(c) if c.edges == t.edges => {}
+                Ok(_) => {
                     return Err(invalid(format!(
-                        "SPN of template {:?}, node {id}: weight {w} is not finite and ≥ 0",
+                        "template {:?}: edges must be sorted (a, b) pairs with a < b",
                         t.name
                     )));
                 }
+                Err(e) => return Err(invalid(format!("template {i}: {e}"))),
             }
+        }
+        for (index, (t, spn)) in self.templates.iter().zip(&self.spns).enumerate() {
+            check_template_spn(spn, t.num_nodes, self.classes.len()).map_err(|source| {
+                ModelFileError::TemplateSpn {
+                    source_name: source_name.to_string(),
+                    template: t.name.clone(),
+                    index,
+                    source: Box::new(source),
+                }
+            })?;
         }
         Ok(())
     }
@@ -135,7 +237,9 @@ impl Model {
     }
 
     /// Parses a model; `source_name` names the input in error messages. Rejects
-    /// other format versions before looking at the rest.
+    /// other format versions before looking at the rest, checks the model
+    /// ([`Model::check`]), then rescales every sum whose weights do not add up to 1
+    /// ([`normalise_weights`]): a model file's weights are relative.
     pub fn from_json_named(text: &str, source_name: &str) -> Result<Self, ModelFileError> {
         let probe: Probe = serde_json::from_str(text).map_err(|e| parse_error(source_name, e))?;
         let ok = matches!(&probe.format, Some(v) if v.as_u64() == Some(u64::from(MODEL_FORMAT)));
@@ -148,8 +252,12 @@ impl Model {
                 expected: MODEL_FORMAT,
             });
         }
-        let model: Model = serde_json::from_str(text).map_err(|e| parse_error(source_name, e))?;
+        let mut model: Model =
+            serde_json::from_str(text).map_err(|e| parse_error(source_name, e))?;
         model.check(source_name)?;
+        for spn in &mut model.spns {
+            normalise_weights(spn);
+        }
         Ok(model)
     }
 

@@ -8,27 +8,34 @@
 //! - [`file`](mod@file): reading and writing [`Model`] files.
 
 pub mod file;
+#[cfg(feature = "host")]
 pub mod from_maps;
 pub mod model;
 pub mod settings;
 pub mod structure;
 pub mod symmetry;
+#[cfg(feature = "host")]
 pub mod train;
 
-pub use file::ModelFileError;
+pub use file::{ModelFileError, TemplateSpnError, check_template_spn, normalise_weights};
+#[cfg(feature = "host")]
 pub use from_maps::{TemplateTraining, TrainModelError, template_samples, train_model};
 pub use model::Model;
 pub use settings::{EmKind, Symmetry, TrainingSettings};
 pub use structure::{
     DenseParams, SplitChoice, dense_structure, symmetric_dense_structure, uniform_spn,
 };
-pub use symmetry::{EdgeOrbits, augment_with_automorphisms, edge_orbits};
+#[cfg(feature = "host")]
+pub use symmetry::augment_with_automorphisms;
+pub use symmetry::{EdgeOrbits, edge_orbits};
+#[cfg(feature = "host")]
 pub use train::{Progress, TrainError, TrainingReport, train, train_tied};
 
 use crate::map::ClassId;
 use crate::spn::Spn;
 
 /// Why a template SPN could not be learned.
+#[cfg(feature = "host")]
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum LearnError {
     /// Building the structure failed.
@@ -42,6 +49,7 @@ pub enum LearnError {
     Train(#[from] TrainError),
 }
 
+#[cfg(feature = "host")]
 /// Learns one template SPN: a single variable gets [`uniform_spn`]; otherwise the
 /// samples are augmented with `automorphisms` (unless `settings.symmetry` is
 /// `none`), a dense structure is generated (symmetric and tied for

@@ -37,7 +37,7 @@ pub enum Symmetry {
 }
 
 /// Everything that determines a trained model besides the data. Defaults are the
-/// authors' settings (REFERENCE-FACTS.md §3) plus our symmetry fix
+/// authors' settings (from their published code) plus our symmetry fix
 /// ([`Symmetry::Tied`]; set [`Symmetry::Augment`] for the paper's 1,250-weight
 /// Star).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

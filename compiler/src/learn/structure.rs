@@ -1,5 +1,5 @@
 //! Dense random template-SPN structures (Poon–Domingos style, as in the paper's
-//! "Sum-Product Networks" section and REFERENCE-FACTS.md §3).
+//! "Sum-Product Networks" section and the authors' published code).
 //!
 //! A *region* is a set of variables. The root region holds all variables. A
 //! region with more than one variable is split `decompositions` times into

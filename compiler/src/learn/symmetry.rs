@@ -21,6 +21,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
+#[cfg(feature = "host")]
 use super::train::TrainError;
 use crate::map::ClassId;
 use crate::spn::{Node, NodeId, Spn};
@@ -64,6 +65,7 @@ pub enum SymmetryError {
     },
 }
 
+#[cfg(feature = "host")]
 /// Every sample under every permutation: for a sample `s` and permutation `π`,
 /// the sample `s'[i] = s[π[i]]` (the component's nodes re-listed in the order
 /// `π`). Output order: for each sample, its images in the order of

@@ -1,5 +1,5 @@
 //! Loader for the COLD topological maps (`nodes.dat` + `rooms.dat`), with the
-//! filtering the paper's authors applied (REFERENCE-FACTS.md section 1).
+//! filtering the paper's authors applied (described in `docs/FORMATS.md`).
 //!
 //! `nodes.dat` has one place per line in 34 space-separated columns: id,
 //! placeholder flag, pose x y, two unused, anchor pose x y, raw label,
@@ -19,6 +19,8 @@
 //! edges are the union of both listing directions, de-duplicated; nodes left
 //! without an edge are dropped; placeholders are kept; the largest connected
 //! component is kept (with the real data it is always the whole graph).
+//! [`load_sequence_report`] lists what was dropped; the command-line tool warns
+//! when a map loses places to disconnection.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -30,6 +32,33 @@ pub const BUILDINGS: [&str; 3] = ["Freiburg", "Saarbrucken", "Stockholm"];
 
 /// Number of columns of a `nodes.dat` line.
 pub const NODE_COLUMNS: usize = 34;
+
+/// Environment variable naming the COLD data folder (overrides the shipped copy).
+pub const DATA_ENV: &str = "GRAPHSPN_DATA";
+
+/// The COLD maps shipped with the project: `data/cold-topomaps/` of the repository
+/// (the folder holding `Freiburg/`, `Saarbrucken/`, `Stockholm/`).
+pub fn shipped_data_dir() -> PathBuf {
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest
+        .parent()
+        .unwrap_or(manifest)
+        .join("data")
+        .join("cold-topomaps")
+}
+
+/// The COLD data folder every command, test, bench and example reads: `arg` (a
+/// `--data` flag) if given, else `$GRAPHSPN_DATA` if set and non-empty, else
+/// [`shipped_data_dir`].
+pub fn data_dir(arg: Option<&Path>) -> PathBuf {
+    if let Some(a) = arg {
+        return a.to_path_buf();
+    }
+    match std::env::var_os(DATA_ENV) {
+        Some(v) if !v.is_empty() => PathBuf::from(v),
+        _ => shipped_data_dir(),
+    }
+}
 
 /// Room relabelled by the authors: `(from, to, new raw label)`.
 pub const ROOM_RELABEL: (&str, &str, &str) = ("7-2PO-1", "7-1PO-3", "1PO");
@@ -43,7 +72,7 @@ pub enum RawLabel {
     Unknown,
 }
 
-/// The class of a raw COLD label (REFERENCE-FACTS.md class table), or `None`
+/// The class of a raw COLD label (the table in `docs/FORMATS.md`), or `None`
 /// for a label the table does not know.
 pub fn raw_label_class(raw: &str) -> Option<RawLabel> {
     let c: ClassId = match raw {
@@ -224,10 +253,43 @@ fn room_label(room: &str) -> Option<&str> {
     if label.is_empty() { None } else { Some(label) }
 }
 
+/// Nodes of a `nodes.dat` that the filtering dropped, by reason (ids ascending).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Dropped {
+    /// Labelled `UN` (unknown).
+    pub unknown: Vec<PlaceId>,
+    /// Left without an edge once the `UN` nodes were gone.
+    pub isolated: Vec<PlaceId>,
+    /// Outside the largest connected component.
+    pub disconnected: Vec<PlaceId>,
+}
+
+impl Dropped {
+    /// Why place `id` was dropped, if it was.
+    pub fn reason(&self, id: PlaceId) -> Option<&'static str> {
+        if self.unknown.binary_search(&id).is_ok() {
+            Some("it is labelled UN (unknown)")
+        } else if self.isolated.binary_search(&id).is_ok() {
+            Some("it has no edge to a labelled place")
+        } else if self.disconnected.binary_search(&id).is_ok() {
+            Some("it is not in the largest connected component")
+        } else {
+            None
+        }
+    }
+}
+
 /// Load one COLD sequence folder (holding `nodes.dat` and `rooms.dat`) with the
 /// authors' filtering. The map is named `<parent folder>/<folder>`, e.g.
-/// `Freiburg/seq1_cloudy1`.
+/// `Freiburg/seq1_cloudy1`. [`load_sequence_report`] also says what was dropped.
 pub fn load_sequence(dir: impl AsRef<Path>) -> Result<TopoMap, MapError> {
+    load_sequence_report(dir).map(|(m, _)| m)
+}
+
+/// [`load_sequence`], also returning the nodes the filtering dropped, so a caller can
+/// warn about a disconnected map (whose smaller components are dropped) and explain
+/// an evidence row for a dropped place.
+pub fn load_sequence_report(dir: impl AsRef<Path>) -> Result<(TopoMap, Dropped), MapError> {
     let dir = dir.as_ref();
     let nodes_path = dir.join("nodes.dat");
     let rooms_path = dir.join("rooms.dat");
@@ -305,7 +367,26 @@ pub fn load_sequence(dir: impl AsRef<Path>) -> Result<TopoMap, MapError> {
     }
     let map = TopoMap::new(sequence_name(dir), ClassSet::paper(), places, edges)
         .map_err(|e| e.in_file(&nodes_path))?;
-    Ok(map.largest_component())
+    let kept = map.largest_component();
+    let kept_ids: std::collections::BTreeSet<PlaceId> = kept.places().map(|p| p.id).collect();
+    let dropped = Dropped {
+        unknown: nodes
+            .keys()
+            .filter(|id| !classes_of.contains_key(id))
+            .map(|&id| id as PlaceId)
+            .collect(),
+        isolated: classes_of
+            .keys()
+            .filter(|id| !has_edge.contains_key(id))
+            .map(|&id| id as PlaceId)
+            .collect(),
+        disconnected: map
+            .places()
+            .map(|p| p.id)
+            .filter(|id| !kept_ids.contains(id))
+            .collect(),
+    };
+    Ok((kept, dropped))
 }
 
 fn sequence_name(dir: &Path) -> String {

@@ -42,7 +42,7 @@ pub enum MapError {
         path: PathBuf,
         /// 1-based line number.
         line: usize,
-        /// 0-based column index (as in REFERENCE-FACTS.md).
+        /// 0-based column index (as in `docs/FORMATS.md`).
         column: usize,
         /// The offending text.
         text: String,

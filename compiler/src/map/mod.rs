@@ -29,7 +29,7 @@ pub struct ClassSet {
     names: Vec<String>,
 }
 
-/// The paper's ten classes, in the index order of REFERENCE-FACTS.md.
+/// The paper's ten classes, in index order (listed with their COLD labels in `docs/FORMATS.md`).
 pub const PAPER_CLASSES: [&str; 10] = [
     "DW", "CR", "1PO", "2PO", "LO", "LAB", "BA", "KT", "MR", "UT",
 ];

@@ -245,10 +245,14 @@ fn f(x: f64) -> String {
     if s == "-0.00" { "0.00".into() } else { s }
 }
 
+/// Largest width or height (SVG user units) of the drawn map area: a map whose
+/// extent times [`RenderOptions::scale`] is larger is drawn at the scale that fits
+/// (so coordinates up to ±1.8e308 still give a finite drawing).
+pub const MAX_EXTENT: f64 = 1e6;
+
 fn draw(map: &TopoMap, opts: &RenderOptions, warning: Option<&str>) -> String {
     let n = map.num_places();
-    let s = opts.scale;
-    let r = opts.radius * s;
+    let r = opts.radius * opts.scale;
     let (mut x0, mut x1, mut y0, mut y1) = (0.0f64, 1.0f64, 0.0f64, 1.0f64);
     if n > 0 {
         x0 = map.places().map(|p| p.x).fold(f64::INFINITY, f64::min);
@@ -260,8 +264,11 @@ fn draw(map: &TopoMap, opts: &RenderOptions, warning: Option<&str>) -> String {
     let top = margin
         + if opts.title.is_some() { 30.0 } else { 0.0 }
         + if warning.is_some() { 20.0 } else { 0.0 };
-    let map_w = (x1 - x0) * s;
-    let map_h = (y1 - y0) * s;
+    // Half extents cannot overflow (x1 - x0 can, for coordinates near ±f64::MAX).
+    let (half_w, half_h) = (x1 / 2.0 - x0 / 2.0, y1 / 2.0 - y0 / 2.0);
+    let s = (MAX_EXTENT / 2.0 / half_w.max(half_h)).min(opts.scale);
+    let map_w = half_w * s * 2.0;
+    let map_h = half_h * s * 2.0;
     let legend_x = margin + map_w + r + 30.0;
     let legend_w = 170.0;
 
@@ -291,8 +298,8 @@ fn draw(map: &TopoMap, opts: &RenderOptions, warning: Option<&str>) -> String {
     let width = legend_x + legend_w;
     let height = (top + map_h + margin).max(top + legend_h);
 
-    let px = |x: f64| margin + (x - x0) * s;
-    let py = |y: f64| top + (y1 - y) * s;
+    let px = |x: f64| margin + (x / 2.0 - x0 / 2.0) * s * 2.0;
+    let py = |y: f64| top + (y1 / 2.0 - y / 2.0) * s * 2.0;
 
     let mut o = String::new();
     let _ = writeln!(

@@ -187,6 +187,32 @@ pub enum SpnError {
     },
 }
 
+impl SpnError {
+    /// The node the error is about, when it is about one node.
+    pub fn node(&self) -> Option<NodeId> {
+        use SpnError::*;
+        match self {
+            NoVariables | ZeroClasses { .. } | VariableNotInScope { .. } => None,
+            RootOutOfRange { root, .. } => Some(*root),
+            Cycle { nodes } => nodes.first().copied(),
+            ChildOutOfRange { node, .. }
+            | WeightCountMismatch { node, .. }
+            | EmptySum { node }
+            | EmptyProduct { node }
+            | NonFiniteWeight { node, .. }
+            | NegativeWeight { node, .. }
+            | NotNormalised { node, .. }
+            | ZeroWeightSum { node }
+            | LeafVarOutOfRange { node, .. }
+            | LeafClassOutOfRange { node, .. }
+            | Misordered { node, .. }
+            | Incomplete { node, .. }
+            | NotDecomposable { node, .. }
+            | Unreachable { node, .. } => Some(*node),
+        }
+    }
+}
+
 /// Interned bitset scopes.
 struct Scopes {
     words: usize,

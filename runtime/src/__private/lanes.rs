@@ -34,7 +34,9 @@ pub type Lanes32 = wide::f32x8;
 pub type Lanes64 = wide::f64x4;
 
 /// A SIMD vector with one lane per component (see the module docs).
-pub trait Lanes: Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign {
+pub trait Lanes:
+    Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign + core::ops::Div<Output = Self>
+{
     /// The scalar of one lane.
     type Scalar: Real;
     /// All lanes `0`.
@@ -49,6 +51,31 @@ pub trait Lanes: Copy + Add<Output = Self> + Mul<Output = Self> + AddAssign {
     fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self);
     /// Lane `l` (`0` when out of range).
     fn lane(self, l: usize) -> Self::Scalar;
+    /// Sets lane `l` to `v` (no effect when out of range).
+    fn set_lane(&mut self, l: usize, v: Self::Scalar);
+    /// The vector whose lane `l` is `a[l]` (lanes past `L` are `0`, entries past the
+    /// vector's width ignored).
+    fn from_lanes<const L: usize>(a: &[Self::Scalar; L]) -> Self;
+    /// The first `L` lanes as an array (`0` past the vector's width).
+    fn to_lanes<const L: usize>(self) -> [Self::Scalar; L];
+    /// Sum of the lanes of every vector of `v`, lane by lane: `Σ_i v[i]`.
+    #[inline(always)]
+    fn sum<const K: usize>(v: &[Self; K]) -> Self {
+        let mut s = Self::ZERO;
+        for &x in v {
+            s += x;
+        }
+        s
+    }
+    /// Lane-wise maximum over the vectors of `v` (`0` for an empty array).
+    #[inline(always)]
+    fn max_of<const K: usize>(v: &[Self; K]) -> Self {
+        let mut s = Self::ZERO;
+        for &x in v {
+            s = s.max(x);
+        }
+        s
+    }
 }
 
 macro_rules! lanes_impl {
@@ -78,12 +105,92 @@ macro_rules! lanes_impl {
             fn lane(self, l: usize) -> $t {
                 self.to_array().get(l).copied().unwrap_or(0.0)
             }
+            #[inline(always)]
+            fn set_lane(&mut self, l: usize, v: $t) {
+                let mut a = self.to_array();
+                if let Some(o) = a.get_mut(l) {
+                    *o = v;
+                }
+                *self = $v::from(a);
+            }
+            #[inline(always)]
+            fn from_lanes<const L: usize>(a: &[$t; L]) -> Self {
+                let mut b = $v::ZERO.to_array();
+                for (o, &v) in b.iter_mut().zip(a) {
+                    *o = v;
+                }
+                $v::from(b)
+            }
+            #[inline(always)]
+            fn to_lanes<const L: usize>(self) -> [$t; L] {
+                let mut b = [0.0; L];
+                for (o, &v) in b.iter_mut().zip(&self.to_array()) {
+                    *o = v;
+                }
+                b
+            }
         }
     };
 }
 
 lanes_impl!(Lanes32, f32);
 lanes_impl!(Lanes64, f64);
+
+/// One component per call: the scalar itself is the "vector" (targets without float
+/// SIMD, e.g. Cortex-M4F or RISC-V MCUs). Multiply-adds are not fused (no `fma` in
+/// `core`), so results are bit-identical on every IEEE target.
+macro_rules! scalar_lanes {
+    ($t:ident) => {
+        impl Lanes for $t {
+            type Scalar = $t;
+            const ZERO: Self = 0.0;
+            #[inline(always)]
+            fn splat(s: $t) -> Self {
+                s
+            }
+            #[inline(always)]
+            fn mul_add(self, a: Self, b: Self) -> Self {
+                self * a + b
+            }
+            #[inline(always)]
+            fn max(self, o: Self) -> Self {
+                if o > self { o } else { self }
+            }
+            #[inline(always)]
+            fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
+                if p > *best {
+                    *best = p;
+                    *arg = code;
+                }
+            }
+            #[inline(always)]
+            fn lane(self, l: usize) -> $t {
+                if l == 0 { self } else { 0.0 }
+            }
+            #[inline(always)]
+            fn set_lane(&mut self, l: usize, v: $t) {
+                if l == 0 {
+                    *self = v;
+                }
+            }
+            #[inline(always)]
+            fn from_lanes<const L: usize>(a: &[$t; L]) -> Self {
+                a.first().copied().unwrap_or(0.0)
+            }
+            #[inline(always)]
+            fn to_lanes<const L: usize>(self) -> [$t; L] {
+                let mut b = [0.0; L];
+                if let Some(o) = b.first_mut() {
+                    *o = self;
+                }
+                b
+            }
+        }
+    };
+}
+
+scalar_lanes!(f32);
+scalar_lanes!(f64);
 
 /// `out[m] += Σ_i w[m][i]·a[i]`.
 #[inline(never)]

@@ -293,16 +293,20 @@ flavour!(
 // ---------------------------------------------------------------------------
 
 mod blocks;
+mod engine;
 mod lanes;
 
 pub use blocks::*;
+pub use engine::*;
 pub use lanes::*;
 
 /// The scalar types of generated code (`f32`, `f64`).
 pub trait Real:
     Copy
     + PartialOrd
+    + core::fmt::Debug
     + core::ops::Add<Output = Self>
+    + core::ops::Sub<Output = Self>
     + core::ops::Mul<Output = Self>
     + core::ops::AddAssign
     + core::ops::MulAssign
@@ -312,37 +316,88 @@ pub trait Real:
     const ZERO: Self;
     /// `1`.
     const ONE: Self;
+    /// `ln 2`.
+    const LN_2: Self;
+    /// `-inf`.
+    const NEG_INFINITY: Self;
     /// The value as an index (truncated; `0` for negative or NaN values).
     fn index(self) -> usize;
     /// An index as a value (exact below 2^24 for `f32`).
     fn from_index(i: usize) -> Self;
+    /// An integer as a value (exact below 2^24 in magnitude for `f32`).
+    fn from_i32(i: i32) -> Self;
+    /// Natural log (`ln 0 = -inf`).
+    fn ln(self) -> Self;
+    /// `e^x`.
+    fn exp(self) -> Self;
+    /// Neither NaN nor infinite.
+    fn is_finite(self) -> bool;
+    /// `(m, e)` with `self = m·2^e` exactly and `m` in `[1, 2)`; zero, infinite and NaN
+    /// values are returned unchanged with `e = 0`, subnormals are normalised.
+    fn split(self) -> (Self, i32);
 }
 
-impl Real for f32 {
-    const ZERO: f32 = 0.0;
-    const ONE: f32 = 1.0;
-    #[inline(always)]
-    fn index(self) -> usize {
-        self as usize
-    }
-    #[inline(always)]
-    fn from_index(i: usize) -> f32 {
-        i as f32
-    }
+macro_rules! real_impl {
+    ($t:ident, $bits:ident, $mant:expr, $bias:expr, $emask:expr, $ln:path, $exp:path) => {
+        impl Real for $t {
+            const ZERO: $t = 0.0;
+            const ONE: $t = 1.0;
+            const LN_2: $t = core::$t::consts::LN_2;
+            const NEG_INFINITY: $t = $t::NEG_INFINITY;
+            #[inline(always)]
+            fn index(self) -> usize {
+                self as usize
+            }
+            #[inline(always)]
+            fn from_index(i: usize) -> $t {
+                i as $t
+            }
+            #[inline(always)]
+            fn from_i32(i: i32) -> $t {
+                i as $t
+            }
+            #[inline(always)]
+            fn ln(self) -> $t {
+                $ln(self)
+            }
+            #[inline(always)]
+            fn exp(self) -> $t {
+                $exp(self)
+            }
+            #[inline(always)]
+            fn is_finite(self) -> bool {
+                $t::is_finite(self)
+            }
+            #[inline(always)]
+            fn split(self) -> ($t, i32) {
+                let mut v = self;
+                let mut shift = 0i32;
+                let mut b = v.to_bits();
+                let mut ex = ((b >> $mant) & $emask) as i32;
+                if ex == 0 {
+                    if v == 0.0 {
+                        return (v, 0);
+                    }
+                    // Subnormal: scale into the normal range first (exact).
+                    v *= 18446744073709551616.0; // 2^64
+                    shift = -64;
+                    b = v.to_bits();
+                    ex = ((b >> $mant) & $emask) as i32;
+                }
+                if ex == $emask as i32 {
+                    return (self, 0);
+                }
+                let m = $t::from_bits(
+                    (b & !(($emask as $bits) << $mant)) | (($bias as $bits) << $mant),
+                );
+                (m, ex - $bias + shift)
+            }
+        }
+    };
 }
 
-impl Real for f64 {
-    const ZERO: f64 = 0.0;
-    const ONE: f64 = 1.0;
-    #[inline(always)]
-    fn index(self) -> usize {
-        self as usize
-    }
-    #[inline(always)]
-    fn from_index(i: usize) -> f64 {
-        i as f64
-    }
-}
+real_impl!(f32, u32, 23, 127, 0xff, libm::logf, libm::expf);
+real_impl!(f64, u64, 52, 1023, 0x7ff, libm::log, libm::exp);
 
 /// The scaled rows of places `p` (see `prep_f32`): `x = α/max α`, or the one-hot row of
 /// the place's label when it is `< C`. Out-of-range places give zero rows.

@@ -1,0 +1,58 @@
+//! The generator's report (`CodeReport`) on the shipped demo maps: the figures the
+//! README quotes and the layout properties they rest on.
+
+use std::path::PathBuf;
+
+use graphspn_compiler::codegen::{Builder, Vectorisation};
+
+fn demo(file: &str, v: Vectorisation) -> graphspn_compiler::codegen::CodeReport {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
+    let b = Builder::new(dir.join("model.json"), dir.join(file))
+        .vectorisation(v)
+        .seed(0)
+        .count(5);
+    b.report_from(&b.load().expect("demo inputs"))
+        .expect("generation")
+        .1
+}
+
+/// Lane groups are formed from neighbouring components (ordered by their first
+/// place), so the D components containing a place mostly share groups: a streaming
+/// update re-evaluates on average fewer than 3 of the 8-lane groups (4.3-4.5 when
+/// groups followed the decompositions' order).
+#[test]
+fn a_state_update_touches_few_lane_groups() {
+    for file in ["floor.json", "saarbrucken_seq2_night1.json"] {
+        let r = demo(file, Vectorisation::Simd);
+        assert_eq!(r.lanes, 8);
+        assert!(
+            r.units_per_update < 3.0,
+            "{file}: an update re-evaluates {:.2} lane groups on average",
+            r.units_per_update
+        );
+        // Scalar code evaluates single components: at most one per decomposition.
+        let s = demo(file, Vectorisation::Scalar);
+        assert!(
+            s.units_per_update <= 5.0 && s.units_per_update >= 1.0,
+            "{file}: {s:?}"
+        );
+    }
+}
+
+/// With the defaults the 230-place map needs at most 16 KiB of stack per call in
+/// scalar (microcontroller) code, its per-map tables are small, and a streaming
+/// update costs a small fraction of a full `marginals`.
+#[test]
+fn scalar_code_of_the_largest_cold_map_fits_a_small_stack() {
+    let r = demo("saarbrucken_seq2_night1.json", Vectorisation::Scalar);
+    for s in [
+        r.stack_log_likelihood,
+        r.stack_marginals,
+        r.stack_mpe,
+        r.stack_state,
+    ] {
+        assert!(s <= 16 * 1024, "{r:?}");
+    }
+    assert!(r.table_bytes < 64 * 1024, "{r:?}");
+    assert!(r.macs_observe_marginals * 10 < r.macs_marginals, "{r:?}");
+}

@@ -1,0 +1,35 @@
+//! Compiles the repository's demo maps with the demo model, exactly as
+//! `generated/build.rs` does (f32, seed 0, 5 decompositions): the firmware's results
+//! can then be compared with the host build of `graphspn-generated`.
+
+use std::path::PathBuf;
+
+use graphspn_compiler::codegen::{Builder, Vectorisation};
+
+/// `(module name, map file under ../../generated/demo/)`.
+const MAPS: &[(&str, &str)] = &[
+    ("demo_floor", "floor.json"),
+    ("saarbrucken_seq2_night1", "saarbrucken_seq2_night1.json"),
+];
+
+fn main() {
+    let dir = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").expect("set by cargo"));
+    let demo = dir.join("../../generated/demo");
+    for &(module, file) in MAPS {
+        // `run()` writes $OUT_DIR/<module>.rs (only if changed) and prints the
+        // rerun-if-changed lines for the model and the map.
+        // Scalar code (one component per call) on every target, the host build
+        // included: the MCUs get it anyway (`Builder` picks it for targets without
+        // float SIMD), and the host build the tests compare with then runs exactly the
+        // same operations (Rust never fuses a multiply and an add on its own).
+        if let Err(e) = Builder::new(demo.join("model.json"), demo.join(file))
+            .vectorisation(Vectorisation::Scalar)
+            .seed(0)
+            .count(5)
+            .module_name(module)
+            .run()
+        {
+            panic!("graphspn-firmware-maps: {e}");
+        }
+    }
+}

@@ -1,0 +1,592 @@
+//! The generic driver of generated code: evaluates every component of a map through
+//! its template's generated functions, mixes the decompositions, and keeps the cache
+//! of the streaming state.
+//!
+//! A generated module holds, per template, a [`Tpl`]: the template's component table
+//! (places of each component, in groups of `L` components evaluated at once, one per
+//! lane of `W`; `L = 1` and `W` = the scalar on targets without float SIMD) and its
+//! generated straight-line functions (value, value + local posteriors, max-product
+//! value, scalar MPE with backtracking). The loops here run over those constant
+//! tables: their trip counts never depend on the evidence.
+//!
+//! Values of decompositions are products of many component values; they are kept as
+//! [`Acc`]: a mantissa in `[1, 2)` and an integer power of two (exact), so a product
+//! of thousands of factors neither underflows nor loses more than one rounding per
+//! factor, and differences between decompositions are taken on the exponents first.
+
+use super::{Lanes, Real};
+use crate::EvidenceError;
+
+/// A template's value + local posteriors function (see [`Tpl::post`]).
+pub type PostFn<W, const NV: usize, const C: usize> = fn(&[[W; C]; NV], &mut [[W; C]; NV]) -> W;
+/// A template's scalar MPE function (see [`Tpl::mpe`]).
+pub type MpeFn<T, const NV: usize, const C: usize> = fn(&[[T; C]; NV], &mut [u16; NV]) -> T;
+
+/// `a > b`; `false` when either is NaN.
+#[inline(always)]
+fn above<T: PartialOrd>(a: T, b: T) -> bool {
+    a > b
+}
+
+/// One template of a compiled map: its component table and generated functions.
+///
+/// `W` is the lane vector (`L` components per call), `NV` the template's places, `C`
+/// the number of classes.
+pub struct Tpl<W: Lanes, const L: usize, const NV: usize, const C: usize> {
+    /// Places of every group of `L` components (padded with the group's first member).
+    pub places: &'static [[[u16; NV]; L]],
+    /// Per component (group `g`, lane `l` is component `g·L + l`): bit `d` set when
+    /// decomposition `d` contains it. Components past the end are padding.
+    pub decs: &'static [u64],
+    /// `true` when the functions return natural-log values (log-space template).
+    pub log: bool,
+    /// Value of each lane's component on scaled evidence.
+    pub fwd: fn(&[[W; C]; NV]) -> W,
+    /// Value and local posteriors `x_i[c]·∂T/∂x_i[c] / T` of each lane's component.
+    pub post: PostFn<W, NV, C>,
+    /// Max-product value of each lane's component.
+    pub max: fn(&[[W; C]; NV]) -> W,
+    /// Max-product value of one component and its arg-max labelling.
+    pub mpe: MpeFn<W::Scalar, NV, C>,
+}
+
+/// A non-negative product kept as `m · 2^e · e^lg` (`m` in `[1, 2)` or `0`), see the
+/// module docs.
+#[derive(Clone, Copy, Debug)]
+pub struct Acc<T> {
+    m: T,
+    e: i32,
+    lg: T,
+}
+
+impl<T: Real> Acc<T> {
+    /// The empty product, `1`.
+    pub const ONE: Acc<T> = Acc {
+        m: T::ONE,
+        e: 0,
+        lg: T::ZERO,
+    };
+
+    /// Multiplies by a linear value `v ≥ 0` (one rounding).
+    #[inline(always)]
+    pub fn mul(&mut self, v: T) {
+        let (m, e) = (self.m * v).split();
+        self.m = m;
+        self.e += e;
+    }
+
+    /// Multiplies by `e^l` for a log value `l`.
+    #[inline(always)]
+    pub fn mul_log(&mut self, l: T) {
+        self.lg += l;
+    }
+
+    /// `ln` of the product (`-inf` for `0`).
+    #[inline]
+    pub fn ln(&self) -> T {
+        self.m.ln() + T::from_i32(self.e) * T::LN_2 + self.lg
+    }
+
+    /// `ln(self / o)`, exact in the exponents (`-inf` when `self` is `0`).
+    #[inline]
+    pub fn ln_ratio(&self, o: &Acc<T>) -> T {
+        (self.m / o.m).ln() + T::from_i32(self.e - o.e) * T::LN_2 + (self.lg - o.lg)
+    }
+
+    /// `true` when the product is `0` (or its log is `-inf`).
+    #[inline]
+    pub fn is_zero(&self) -> bool {
+        !above(self.m, T::ZERO) || !above(self.lg, T::NEG_INFINITY)
+    }
+}
+
+/// The decompositions' mixture: `ln Ŝ = ln((1/D) Σ_d Π_k T_k)` and the posterior weight
+/// `w_d` of each decomposition, or `None` when every decomposition is `0`.
+#[inline]
+pub fn mix<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<(T, [T; D])> {
+    let mut best: Option<&Acc<T>> = None;
+    for a in acc {
+        if a.is_zero() {
+            continue;
+        }
+        match best {
+            Some(b) if a.ln_ratio(b) <= T::ZERO => {}
+            _ => best = Some(a),
+        }
+    }
+    let best = best?;
+    let mut w = [T::ZERO; D];
+    let mut s = T::ZERO;
+    for (o, a) in w.iter_mut().zip(acc) {
+        if !a.is_zero() {
+            *o = a.ln_ratio(best).exp();
+            s += *o;
+        }
+    }
+    let inv = T::ONE / s;
+    for o in w.iter_mut() {
+        *o *= inv;
+    }
+    Some((best.ln() + s.ln() - T::from_i32(D as i32).ln(), w))
+}
+
+/// Index of the largest decomposition value (lowest index on ties), or `None` when
+/// every decomposition is `0`.
+#[inline]
+pub fn best<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<usize> {
+    let mut best: Option<usize> = None;
+    for (d, a) in acc.iter().enumerate() {
+        if a.is_zero() {
+            continue;
+        }
+        match best.and_then(|b| acc.get(b)) {
+            Some(b) if a.ln_ratio(b) <= T::ZERO => {}
+            _ => best = Some(d),
+        }
+    }
+    best
+}
+
+/// `ln Π_p s_p`, where `s_p` is the largest value of row `p`, or the value of its
+/// label when labelled (`label < C`); `-inf` when some `s_p = 0`. The product keeps
+/// an exact power-of-two exponent (one rounding per place, one `ln` in all).
+#[inline]
+pub fn log_scale<T: Real, const N: usize, const C: usize>(e: &[[T; C]; N], labels: &[u16; N]) -> T {
+    let mut acc = Acc::ONE;
+    for (row, &l) in e.iter().zip(labels) {
+        acc.mul(row_scale(row, l));
+    }
+    acc.ln()
+}
+
+/// The largest value of `row`, or the value of `label` when `label < C`.
+#[inline(always)]
+fn row_scale<T: Real, const C: usize>(row: &[T; C], label: u16) -> T {
+    match row.get(usize::from(label)) {
+        Some(&v) => v,
+        None => row
+            .iter()
+            .copied()
+            .fold(T::ZERO, |a, b| if b > a { b } else { a }),
+    }
+}
+
+/// The scaled row of a place (largest entry 1), or the one-hot row of its label.
+#[inline(always)]
+fn scaled_row<T: Real, const C: usize>(row: &[T; C], label: u16) -> [T; C] {
+    let mut x = [T::ZERO; C];
+    if let Some(v) = x.get_mut(usize::from(label)) {
+        *v = T::ONE;
+        return x;
+    }
+    let inv = T::ONE / row_scale(row, u16::MAX);
+    for (o, &v) in x.iter_mut().zip(row) {
+        *o = v * inv;
+    }
+    x
+}
+
+/// The scaled rows of one group's components, lane `l` holding component `p[l]`
+/// (`labels`: one-hot rows for labelled places; `None`: no place is labelled).
+///
+/// Each row's scale is computed once per lane and variable; every vector is then
+/// built from its `L` lane values in one step (no per-lane insertion).
+#[inline]
+pub fn gather<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    e: &[[W::Scalar; C]; N],
+    labels: Option<&[u16; N]>,
+    p: &[[u16; NV]; L],
+) -> [[W; C]; NV] {
+    /// A lane's source for one variable: the place's row and its scale's inverse, a
+    /// one-hot label, or nothing (a place out of range: zeros).
+    #[derive(Clone, Copy)]
+    enum Src<'a, T, const C: usize> {
+        Row(&'a [T; C], T),
+        Label(usize),
+        Zero,
+    }
+    let mut src = [[Src::<W::Scalar, C>::Zero; L]; NV];
+    for (l, pl) in p.iter().enumerate() {
+        for (sv, &q) in src.iter_mut().zip(pl) {
+            let q = usize::from(q);
+            let lab = labels
+                .and_then(|ls| ls.get(q))
+                .map_or(usize::MAX, |&x| usize::from(x));
+            let (Some(row), Some(o)) = (e.get(q), sv.get_mut(l)) else {
+                continue;
+            };
+            *o = if lab < C {
+                Src::Label(lab)
+            } else {
+                Src::Row(row, W::Scalar::ONE / row_scale(row, u16::MAX))
+            };
+        }
+    }
+    let mut x = [[W::ZERO; C]; NV];
+    for (xv, sv) in x.iter_mut().zip(&src) {
+        for (c, xc) in xv.iter_mut().enumerate() {
+            let mut a = [W::Scalar::ZERO; L];
+            for (o, s) in a.iter_mut().zip(sv) {
+                *o = match *s {
+                    Src::Row(row, inv) => row.get(c).map_or(W::Scalar::ZERO, |&v| v * inv),
+                    Src::Label(k) if k == c => W::Scalar::ONE,
+                    _ => W::Scalar::ZERO,
+                };
+            }
+            *xc = W::from_lanes(&a);
+        }
+    }
+    x
+}
+
+/// The scaled rows of one component (scalar), for MPE backtracking.
+#[inline]
+fn gather_one<T: Real, const NV: usize, const C: usize, const N: usize>(
+    e: &[[T; C]; N],
+    p: &[u16; NV],
+) -> [[T; C]; NV] {
+    let mut x = [[T::ZERO; C]; NV];
+    for (xv, &q) in x.iter_mut().zip(p) {
+        if let Some(row) = e.get(usize::from(q)) {
+            *xv = scaled_row(row, u16::MAX);
+        }
+    }
+    x
+}
+
+/// Multiplies every component's value (`max`: its max-product value) into the
+/// accumulator of each decomposition containing it.
+#[inline(never)]
+pub fn value_pass<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    labels: &[u16; N],
+    max: bool,
+    acc: &mut [Acc<W::Scalar>; D],
+) {
+    for (g, p) in t.places.iter().enumerate() {
+        let x = gather::<W, L, NV, C, N>(e, Some(labels), p);
+        let v = if max { (t.max)(&x) } else { (t.fwd)(&x) };
+        let masks = t.decs.get(g * L..).unwrap_or(&[]);
+        for (&mask, &vl) in masks.iter().zip(&v.to_lanes::<L>()) {
+            accumulate(acc, mask, vl, t.log);
+        }
+    }
+}
+
+/// Multiplies `v` (a log value when `log`) into every decomposition of `mask`.
+#[inline(always)]
+fn accumulate<T: Real, const D: usize>(acc: &mut [Acc<T>; D], mask: u64, v: T, log: bool) {
+    for (d, a) in acc.iter_mut().enumerate() {
+        if mask >> d & 1 == 1 {
+            if log {
+                a.mul_log(v);
+            } else {
+                a.mul(v);
+            }
+        }
+    }
+}
+
+/// `Σ_{d ∋ component} w_d`.
+#[inline(always)]
+fn weight<T: Real, const D: usize>(w: &[T; D], mask: u64) -> T {
+    let mut s = T::ZERO;
+    for (d, &wd) in w.iter().enumerate() {
+        if mask >> d & 1 == 1 {
+            s += wd;
+        }
+    }
+    s
+}
+
+/// Value and local posteriors of group `p` of a template on evidence `e` (no
+/// labels): `(values per lane, posterior vectors [variable][class])`.
+#[inline(always)]
+fn post_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    p: &[[u16; NV]; L],
+) -> ([W::Scalar; L], [[W; C]; NV]) {
+    let x = gather::<W, L, NV, C, N>(e, None, p);
+    let mut post = [[W::ZERO; C]; NV];
+    let v = (t.post)(&x, &mut post);
+    (v.to_lanes::<L>(), post)
+}
+
+/// One variable's posterior vectors as `[class][lane]` scalars.
+#[inline(always)]
+fn class_lanes<W: Lanes, const L: usize, const C: usize>(pv: &[W; C]) -> [[W::Scalar; L]; C] {
+    let mut out = [[W::Scalar::ZERO; L]; C];
+    for (o, &v) in out.iter_mut().zip(pv) {
+        *o = v.to_lanes::<L>();
+    }
+    out
+}
+
+/// Posterior pass of the stateless marginals: evaluates every component with its
+/// local posteriors and adds them, weighted by its decompositions' posterior weights
+/// `w`, into `out`.
+#[inline(never)]
+pub fn posterior_pass<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    w: &[W::Scalar; D],
+    out: &mut [[W::Scalar; C]; N],
+) {
+    for (g, p) in t.places.iter().enumerate() {
+        let (_, post) = post_group(t, e, p);
+        let masks = t.decs.get(g * L..).unwrap_or(&[]);
+        let mut wl = [W::Scalar::ZERO; L];
+        for (o, &mask) in wl.iter_mut().zip(masks) {
+            *o = weight(w, mask);
+        }
+        for (i, pv) in post.iter().enumerate() {
+            let pv = class_lanes::<W, L, C>(pv);
+            for (l, (pl, &wl)) in p.iter().zip(&wl).enumerate().take(masks.len()) {
+                let Some(o) = pl.get(i).and_then(|&q| out.get_mut(usize::from(q))) else {
+                    continue;
+                };
+                for (oc, pc) in o.iter_mut().zip(&pv) {
+                    *oc += wl * pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
+                }
+            }
+        }
+    }
+}
+
+/// Writes the MPE labels of the components of decomposition `d`.
+#[inline(never)]
+pub fn mpe_labels<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    d: usize,
+    labels: &mut [u16; N],
+) {
+    for (g, p) in t.places.iter().enumerate() {
+        for (l, pl) in p.iter().enumerate() {
+            match t.decs.get(g * L + l) {
+                Some(&mask) if mask >> d & 1 == 1 => {}
+                _ => continue,
+            }
+            let x = gather_one::<W::Scalar, NV, C, N>(e, pl);
+            let mut lab = [0u16; NV];
+            (t.mpe)(&x, &mut lab);
+            for (&c, &q) in lab.iter().zip(pl) {
+                if let Some(o) = labels.get_mut(usize::from(q)) {
+                    *o = c;
+                }
+            }
+        }
+    }
+}
+
+/// Streaming state: re-evaluates group `g` of a template on the state's evidence and
+/// stores each real component's value into `val` (indexed by component within the
+/// template) and its local posteriors into `post` (rows `u·NV ..`).
+#[inline(never)]
+pub fn eval_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    g: usize,
+    val: &mut [W::Scalar],
+    post: &mut [[W::Scalar; C]],
+) {
+    let Some(p) = t.places.get(g) else {
+        return;
+    };
+    let (v, pw) = post_group(t, e, p);
+    let first = g * L;
+    let real = t.decs.len().saturating_sub(first).min(L);
+    for (l, &vl) in v.iter().enumerate().take(real) {
+        if let Some(o) = val.get_mut(first + l) {
+            *o = vl;
+        }
+    }
+    for (i, pv) in pw.iter().enumerate() {
+        let pv = class_lanes::<W, L, C>(pv);
+        for l in 0..real {
+            if let Some(o) = post.get_mut((first + l) * NV + i) {
+                for (oc, pc) in o.iter_mut().zip(&pv) {
+                    *oc = pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
+                }
+            }
+        }
+    }
+}
+
+/// Streaming state: multiplies every cached component value of a template into its
+/// decompositions' accumulators.
+#[inline(never)]
+pub fn state_values<W: Lanes, const L: usize, const NV: usize, const C: usize, const D: usize>(
+    t: &Tpl<W, L, NV, C>,
+    val: &[W::Scalar],
+    acc: &mut [Acc<W::Scalar>; D],
+) {
+    for (&mask, &v) in t.decs.iter().zip(val) {
+        accumulate(acc, mask, v, t.log);
+    }
+}
+
+/// Streaming state: adds every cached component's local posteriors, weighted by its
+/// decompositions' posterior weights, into `out`.
+#[inline(never)]
+pub fn state_marginals<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    t: &Tpl<W, L, NV, C>,
+    post: &[[W::Scalar; C]],
+    w: &[W::Scalar; D],
+    out: &mut [[W::Scalar; C]; N],
+) {
+    let places = t.places.iter().flat_map(|g| g.iter());
+    for ((&mask, pl), rows) in t.decs.iter().zip(places).zip(post.chunks_exact(NV)) {
+        let wu = weight(w, mask);
+        for (&q, r) in pl.iter().zip(rows) {
+            if let Some(o) = out.get_mut(usize::from(q)) {
+                for (oc, &pc) in o.iter_mut().zip(r) {
+                    *oc += wu * pc;
+                }
+            }
+        }
+    }
+}
+
+/// Validates one row of evidence for place `p` (finite, `≥ 0`, some mass).
+pub fn check_row<T: Real, const C: usize>(
+    row: &[T; C],
+    place: usize,
+    place_id: u32,
+) -> Result<(), EvidenceError> {
+    let place_id = u64::from(place_id);
+    let mut mass = false;
+    for (class, &v) in row.iter().enumerate() {
+        if !v.is_finite() {
+            return Err(EvidenceError::NotFinite {
+                place,
+                place_id,
+                class,
+            });
+        }
+        if v < T::ZERO {
+            return Err(EvidenceError::Negative {
+                place,
+                place_id,
+                class,
+            });
+        }
+        mass |= v > T::ZERO;
+    }
+    if mass {
+        Ok(())
+    } else {
+        Err(EvidenceError::NoMass { place, place_id })
+    }
+}
+
+/// The element-wise product of two rows renormalised to a largest entry of 1, or
+/// `None` when it is zero everywhere (or not finite).
+pub fn fuse_rows<T: Real, const C: usize>(a: &[T; C], b: &[T; C]) -> Option<[T; C]> {
+    // Scale each factor first so the product can neither underflow nor overflow.
+    let (sa, sb) = (row_scale(a, u16::MAX), row_scale(b, u16::MAX));
+    if !above(sa, T::ZERO) || !above(sb, T::ZERO) {
+        return None;
+    }
+    let (ia, ib) = (T::ONE / sa, T::ONE / sb);
+    let mut f = [T::ZERO; C];
+    for ((o, &x), &y) in f.iter_mut().zip(a).zip(b) {
+        *o = (x * ia) * (y * ib);
+    }
+    let s = row_scale(&f, u16::MAX);
+    if !above(s, T::ZERO) || !s.is_finite() {
+        return None;
+    }
+    let inv = T::ONE / s;
+    for o in f.iter_mut() {
+        *o *= inv;
+    }
+    Some(f)
+}
+
+/// `Σ_i w_i · rows[i]` over the given rows (out-of-range rows are skipped): one place's
+/// marginal from the streaming state.
+pub fn mix_rows<T: Real, const C: usize, const D: usize>(
+    post: &[[T; C]],
+    slots: &[u32; D],
+    w: &[T; D],
+    out: &mut [T; C],
+) {
+    *out = [T::ZERO; C];
+    for (&s, &wd) in slots.iter().zip(w) {
+        if let Some(r) = post.get(s as usize) {
+            for (o, &v) in out.iter_mut().zip(r) {
+                *o += wd * v;
+            }
+        }
+    }
+}
+
+/// `a[i] += v` for every `i`.
+#[inline(always)]
+pub fn add_all<W: Lanes, const K: usize>(a: &mut [W; K], v: W) {
+    for o in a.iter_mut() {
+        *o += v;
+    }
+}
+
+/// Local posteriors `post[i][c] = x[i][c]·g[i][c] / v` (lane-wise).
+#[inline(always)]
+pub fn post_rows<W: Lanes, const NV: usize, const C: usize>(
+    x: &[[W; C]; NV],
+    g: &[[W; C]; NV],
+    v: W,
+    post: &mut [[W; C]; NV],
+) {
+    let inv = W::splat(<W::Scalar as Real>::ONE) / v;
+    for ((pv, xv), gv) in post.iter_mut().zip(x).zip(g) {
+        for ((o, &a), &b) in pv.iter_mut().zip(xv).zip(gv) {
+            *o = a * b * inv;
+        }
+    }
+}
+
+/// The largest entry and its index (lowest index on ties; `(0, 0)` when all are `≤ 0`).
+#[inline(always)]
+pub fn amax<T: Real, const K: usize>(v: &[T; K]) -> (T, u16) {
+    let (mut best, mut arg) = (T::ZERO, 0u16);
+    for (i, &x) in v.iter().enumerate() {
+        if x > best {
+            best = x;
+            arg = i as u16;
+        }
+    }
+    (best, arg)
+}
+
+/// Where `c > *r` (strictly): `*r = c` and `*a = code` (arg-max of a block sum).
+#[inline(always)]
+pub fn sel<T: Real>(r: &mut T, a: &mut [u16; 4], c: T, code: [u16; 4]) {
+    if c > *r {
+        *r = c;
+        *a = code;
+    }
+}

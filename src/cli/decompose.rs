@@ -1,0 +1,66 @@
+//! `graphspn decompose`: write the decompositions file that `compile --decompositions`,
+//! `infer --decompositions-file` and `instance --decompositions-file` read.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+
+use super::common::{
+    check_decomposition_count, data_dir, declare_map, decompositions_for, load_model, read_map,
+};
+use super::output::{Outputs, write_files};
+
+/// Arguments of `graphspn decompose`.
+#[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn decompose --model generated/demo/model.json --map generated/demo/floor.json --out floor.decompositions.json
+  graphspn decompose --model model.json --map Freiburg/seq1_cloudy1 --count 10 --seed 3 --out seq1.decompositions.json"
+)]
+pub struct DecomposeArgs {
+    /// Model file (its templates are the components' shapes).
+    #[arg(long)]
+    model: PathBuf,
+    /// The map: a JSON map, a COLD sequence folder, or a sequence name under --data.
+    #[arg(long)]
+    map: PathBuf,
+    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Number of decompositions kept (1..=1000), best of max(3 × count, 15) candidates.
+    #[arg(long, default_value_t = 5)]
+    count: usize,
+    /// Seed of the decompositions.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output decompositions file (JSON).
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Runs `graphspn decompose`.
+pub fn run(args: DecomposeArgs) -> Result<()> {
+    let mut outputs = Outputs::new(args.force);
+    check_decomposition_count("--count", args.count)?;
+    outputs.input("--model", &args.model);
+    let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
+    outputs.file("--out", &args.out)?;
+    let model = load_model(&args.model)?;
+    let loaded = read_map(&map_path)?;
+    let decs = decompositions_for(&model, &loaded.map, None, args.count, args.seed)?;
+    let text = graphspn_compiler::decompose::file::to_json(&decs, &loaded.map, &model.templates)?;
+    write_files(&[(&args.out, text.as_bytes())])?;
+    eprintln!(
+        "wrote {} decompositions of {} ({} places) to {}",
+        decs.len(),
+        loaded.map.name,
+        loaded.map.num_places(),
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,177 @@
+//! `graphspn stats`, `render` and `generate`: the map sub-commands.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use graphspn_compiler::map::TopoMap;
+use graphspn_compiler::map::cold;
+use graphspn_compiler::map::stats::{MapStats, comparison_table};
+use graphspn_compiler::map::synthetic::{SyntheticParams, generate};
+use graphspn_compiler::render::{RenderOptions, render_svg};
+
+use super::common::{data_dir, declare_map, read_map, require_data_dir, write_stdout};
+use super::output::{Outputs, write_files};
+
+/// Smallest and largest synthetic floor (places).
+const SYNTHETIC_PLACES: std::ops::RangeInclusive<usize> = 10..=100_000;
+
+fn synthetic(flag: &str, places: usize, seed: u64) -> Result<TopoMap> {
+    if !SYNTHETIC_PLACES.contains(&places) {
+        bail!(
+            "{flag} {places}: a synthetic floor has {} to {} places",
+            SYNTHETIC_PLACES.start(),
+            SYNTHETIC_PLACES.end()
+        );
+    }
+    generate(&SyntheticParams::new(places, seed))
+        .with_context(|| format!("generating a synthetic floor of {places} places (seed {seed})"))
+}
+
+/// Arguments of `graphspn stats`.
+#[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn stats
+  graphspn stats --synthetic 1000 --seed 4"
+)]
+pub struct StatsArgs {
+    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Also generate a synthetic floor of this many places (10..=100000).
+    #[arg(long)]
+    synthetic: Option<usize>,
+    /// Seed of the synthetic floor.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+/// Runs `graphspn stats`.
+pub fn stats(args: StatsArgs) -> Result<()> {
+    let dir = require_data_dir(args.data)?;
+    let syn = match args.synthetic {
+        Some(n) => Some((n, synthetic("--synthetic", n, args.seed)?)),
+        None => None,
+    };
+    let mut columns: Vec<(String, MapStats)> = Vec::new();
+    let mut all = Vec::new();
+    let mut per_building = Vec::new();
+    for b in cold::BUILDINGS {
+        let maps = cold::load_building(&dir, b)?;
+        per_building.push((b.to_string(), MapStats::of_maps(&maps)));
+        all.extend(maps);
+    }
+    columns.push(("COLD".into(), MapStats::of_maps(&all)));
+    columns.extend(per_building);
+    if let Some((n, m)) = &syn {
+        columns.push((format!("synth {n}"), MapStats::of_map(m)));
+    }
+    let cols: Vec<(&str, &MapStats)> = columns.iter().map(|(n, s)| (n.as_str(), s)).collect();
+    write_stdout(&comparison_table(&cols))
+}
+
+/// Arguments of `graphspn render`.
+#[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn render --map Freiburg/seq1_cloudy1 --out freiburg.svg
+  graphspn render --synthetic 500 --seed 2 --title \"A synthetic floor\" --out floor.svg"
+)]
+pub struct RenderArgs {
+    /// A COLD sequence folder (nodes.dat + rooms.dat), a JSON map, or a
+    /// sequence name such as Freiburg/seq1_cloudy1 under the data folder.
+    #[arg(
+        long,
+        conflicts_with = "synthetic",
+        required_unless_present = "synthetic"
+    )]
+    map: Option<PathBuf>,
+    /// Draw a synthetic floor of this many places instead (10..=100000).
+    #[arg(long)]
+    synthetic: Option<usize>,
+    /// Seed of the synthetic floor.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Title (default: the map name).
+    #[arg(long)]
+    title: Option<String>,
+    /// Output SVG file.
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Runs `graphspn render`.
+pub fn render(args: RenderArgs) -> Result<()> {
+    let mut outputs = Outputs::new(args.force);
+    let map_path = match &args.map {
+        Some(p) => Some(declare_map(p, data_dir(args.data), &mut outputs)?),
+        None => None,
+    };
+    outputs.file("--out", &args.out)?;
+    let m = match (&map_path, args.synthetic) {
+        (Some(p), _) => read_map(p)?.map,
+        (None, Some(n)) => synthetic("--synthetic", n, args.seed)?,
+        (None, None) => bail!("give --map PATH or --synthetic N"),
+    };
+    let opts = RenderOptions {
+        title: Some(args.title.unwrap_or_else(|| {
+            format!(
+                "{} ({} places, {} edges)",
+                m.name,
+                m.num_places(),
+                m.num_edges()
+            )
+        })),
+        ..RenderOptions::default()
+    };
+    write_files(&[(&args.out, render_svg(&m, &opts).as_bytes())])?;
+    eprintln!("wrote {} ({} places)", args.out.display(), m.num_places());
+    Ok(())
+}
+
+/// Arguments of `graphspn generate`.
+#[derive(Args)]
+#[command(
+    allow_negative_numbers = true,
+    after_help = "Examples:
+  graphspn generate --places 1000 --out floor.json
+  graphspn generate --places 100000 --seed 7 --out big.json --force"
+)]
+pub struct GenerateArgs {
+    /// Number of places (10..=100000).
+    #[arg(long)]
+    places: usize,
+    /// Seed.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output JSON file.
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Runs `graphspn generate`.
+pub fn generate_cmd(args: GenerateArgs) -> Result<()> {
+    let mut outputs = Outputs::new(args.force);
+    outputs.file("--out", &args.out)?;
+    let m = synthetic("--places", args.places, args.seed)?;
+    write_files(&[(&args.out, m.to_json().as_bytes())])?;
+    eprintln!(
+        "wrote {}: {} places, {} edges",
+        args.out.display(),
+        m.num_places(),
+        m.num_edges()
+    );
+    Ok(())
+}
