@@ -143,7 +143,10 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
     let json = serde_json::json!({ "settings": settings, "validation": vals });
     let md = validation_markdown(&vals, start.elapsed().as_secs_f64());
     write_folder(&args.out, |dir| {
-        std::fs::write(dir.join("validation.json"), serde_json::to_string_pretty(&json)?)?;
+        std::fs::write(
+            dir.join("validation.json"),
+            serde_json::to_string_pretty(&json)?,
+        )?;
         std::fs::write(dir.join("VALIDATION.md"), &md)?;
         Ok(())
     })?;
