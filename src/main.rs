@@ -37,6 +37,9 @@ enum Command {
     /// Run the paper's experiments (classification, placeholders, novelty) and
     /// write REPORT.md, results.json and SVG figures.
     Reproduce(cli::reproduce::ReproduceArgs),
+    /// Choose every model's settings (GraphSPN, tuned MRF-2/MRF-3) by
+    /// leave-one-training-building-out validation; writes VALIDATION.md and validation.json.
+    Validate(cli::reproduce::ValidateArgs),
     /// Compile the GraphSPN of a known map into a no_std Rust source file.
     Compile(cli::compile::CompileArgs),
     /// Decompose a map into the model's templates and write the decompositions file
@@ -54,6 +57,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Infer(args) => cli::infer::run(args),
         Command::Instance(args) => cli::instance::run(args),
         Command::Reproduce(args) => cli::reproduce::run_cmd(args),
+        Command::Validate(args) => cli::reproduce::validate_cmd(args),
         Command::Compile(args) => cli::compile::run(args),
         Command::Decompose(args) => cli::decompose::run(args),
         Command::Generate(args) => cli::maps::generate_cmd(args),

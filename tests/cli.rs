@@ -1,6 +1,6 @@
 //! The command-line tool end to end on the committed demo inputs (no data set needed):
 //! `infer` (marginals, MPE, evidence errors naming the file line and place id),
-//! `instance` export and `compile`.
+//! `instance` export, `compile`, and `validate` + `reproduce --settings`.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -132,4 +132,42 @@ fn instance_exports_dot_and_compile_writes_generated_source() {
         .unwrap();
     assert!(!status.success());
     assert_eq!(std::fs::read_to_string(&exported).unwrap(), "{}");
+}
+
+/// `graphspn validate` (tiny grid, one test building, shipped data) writes its table
+/// and settings, and `reproduce --settings` reuses them: the report names the
+/// validated settings and carries the tuned and paper-style baselines with intervals.
+#[test]
+fn validate_then_reproduce_with_the_saved_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let val = dir.path().join("val");
+    run_ok(
+        bin()
+            .args([
+                "validate",
+                "--buildings",
+                "Stockholm",
+                "--tiny-grid",
+                "--out",
+            ])
+            .arg(&val),
+    );
+    let md = std::fs::read_to_string(val.join("VALIDATION.md")).unwrap();
+    assert!(md.contains("| Stockholm |") && md.contains("MRF-2"), "{md}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(val.join("validation.json")).unwrap())
+            .unwrap();
+    assert!(json["settings"]["Stockholm"].is_object(), "{json}");
+    let out = dir.path().join("out");
+    run_ok(
+        bin()
+            .args(["reproduce", "--quick", "--no-novelty", "--settings"])
+            .arg(val.join("validation.json"))
+            .arg("--out")
+            .arg(&out),
+    );
+    let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
+    for want in ["MRF-2 paper", "evidence only", "Paired difference", "["] {
+        assert!(report.contains(want), "REPORT.md lacks {want:?}");
+    }
 }

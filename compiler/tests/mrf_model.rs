@@ -39,6 +39,7 @@ fn pair_counts_match_hand_count() {
     let joint0 = CooccurrenceParams {
         pseudo_count: 0.0,
         normalisation: Normalisation::Joint,
+        coupling: 1.0,
     };
     let m = Mrf2::train(&[hand_map()], &joint0).unwrap();
     // Edges (A,B), (B,B), (B,C), (B,C), each in both orientations.
@@ -50,6 +51,7 @@ fn pair_counts_match_hand_count() {
     let pmi_params = CooccurrenceParams {
         pseudo_count: 1.0,
         normalisation: Normalisation::Pmi,
+        coupling: 1.0,
     };
     let pmi = Mrf2::train(&[hand_map()], &pmi_params).unwrap();
     let q: Vec<f64> = expected.iter().map(|n| (n + 1.0) / 17.0).collect();
@@ -72,6 +74,7 @@ fn triple_counts_match_hand_count() {
     let joint0 = CooccurrenceParams {
         pseudo_count: 0.0,
         normalisation: Normalisation::Joint,
+        coupling: 1.0,
     };
     let m = Mrf3::train(&[hand_map()], &joint0).unwrap();
     let idx = |a: usize, p: usize, b: usize| (a * 3 + p) * 3 + b;
@@ -169,4 +172,70 @@ fn inference_and_likelihood_are_exact_on_a_tree_map() {
     for row in &r.marginals {
         assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-12);
     }
+}
+
+#[test]
+fn normalised_conditional_and_coupling_follow_their_formulas() {
+    let base = CooccurrenceParams {
+        pseudo_count: 1.0,
+        normalisation: Normalisation::Joint,
+        coupling: 1.0,
+    };
+    let joint = Mrf2::train(&[hand_map()], &base).unwrap();
+    let q = joint.potential().to_vec();
+    let marg: Vec<f64> = (0..3).map(|a| (0..3).map(|b| q[a * 3 + b]).sum()).collect();
+    let with = |normalisation, coupling| {
+        Mrf2::train(
+            &[hand_map()],
+            &CooccurrenceParams {
+                normalisation,
+                coupling,
+                ..base
+            },
+        )
+        .unwrap()
+    };
+    let norm = with(Normalisation::Normalised, 0.3);
+    let cond = with(Normalisation::Conditional, 1.0);
+    for a in 0..3 {
+        for b in 0..3 {
+            let n = (q[a * 3 + b] / (marg[a] * marg[b]).sqrt()).powf(0.3);
+            assert!((norm.potential()[a * 3 + b] - n).abs() < 1e-12);
+            let c = q[a * 3 + b] / marg[a];
+            assert!((cond.potential()[a * 3 + b] - c).abs() < 1e-12);
+        }
+    }
+    // Coupling 0: every potential is 1 (independent places).
+    assert!(
+        with(Normalisation::Pmi, 0.0)
+            .potential()
+            .iter()
+            .all(|&v| v == 1.0)
+    );
+    // MRF-3 conditional: p(a, b | pivot), so each pivot slice sums to 1.
+    let m3 = Mrf3::train(
+        &[hand_map()],
+        &CooccurrenceParams {
+            normalisation: Normalisation::Conditional,
+            ..base
+        },
+    )
+    .unwrap();
+    for p in 0..3 {
+        let s: f64 = (0..3)
+            .flat_map(|a| (0..3).map(move |b| (a * 3 + p) * 3 + b))
+            .map(|i| m3.potential()[i])
+            .sum();
+        assert!((s - 1.0).abs() < 1e-12, "pivot {p}: {s}");
+    }
+    assert!(
+        Mrf2::train(
+            &[hand_map()],
+            &CooccurrenceParams {
+                coupling: -1.0,
+                ..base
+            }
+        )
+        .is_err()
+    );
 }

@@ -7,10 +7,12 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::decompose::DecompositionParams;
 use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
-use graphspn_compiler::experiments::report::write_outputs;
+use graphspn_compiler::experiments::report::{validation_markdown, write_outputs};
 use graphspn_compiler::experiments::reproduce::{ReproduceConfig, load_data, run};
+use graphspn_compiler::experiments::validate::{ModelSettings, ValidationGrid, validate_for};
 use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
+use std::collections::BTreeMap;
 
 use super::common::{check_buildings, check_decomposition_count, require_data_dir};
 use super::output::{Outputs, write_folder};
@@ -70,15 +72,103 @@ pub struct ReproduceArgs {
     /// Skip the novelty-detection experiment.
     #[arg(long)]
     no_novelty: bool,
-    /// GraphSPN evidence exponent (calibration chosen on training buildings; default 2, 1 = the paper's setup).
+    /// Use the settings of a saved validation (`graphspn validate --out DIR` writes
+    /// DIR/validation.json) instead of running the validation again.
     #[arg(long)]
-    evidence_exponent: Option<f64>,
+    settings: Option<PathBuf>,
+    /// Tiny validation grid (smoke runs).
+    #[arg(long)]
+    tiny_grid: bool,
     /// Training settings as JSON merged over the defaults, e.g. '{"em":"soft"}'.
     #[arg(long)]
     training: Option<String>,
-    /// MRF potentials from PMI ratios instead of joint frequencies.
+    /// Paper-style MRF potentials from PMI ratios instead of joint frequencies.
     #[arg(long)]
     mrf_pmi: bool,
+}
+
+/// Arguments of `graphspn validate`.
+#[derive(Args)]
+#[command(after_help = "Examples:
+  graphspn validate --out val/
+  graphspn validate --out val/ --buildings Stockholm --tiny-grid
+  graphspn reproduce --out out/ --settings val/validation.json")]
+pub struct ValidateArgs {
+    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Output folder (VALIDATION.md, validation.json); created if missing, must be
+    /// empty unless --force.
+    #[arg(long)]
+    out: PathBuf,
+    /// Write into a non-empty --out folder, replacing files of the same names.
+    #[arg(long)]
+    force: bool,
+    /// Master seed.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Test buildings to validate for, comma-separated (default: all three).
+    #[arg(long, value_delimiter = ',')]
+    buildings: Option<Vec<String>>,
+    /// Tiny grid (smoke runs).
+    #[arg(long)]
+    tiny_grid: bool,
+}
+
+/// Runs `graphspn validate`: the leave-one-training-building-out search of every
+/// model's settings, per test building; writes validation.json and VALIDATION.md.
+pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
+    // Every argument and the output folder are checked before any computation.
+    let data = require_data_dir(args.data)?;
+    let mut outputs = Outputs::new(args.force);
+    outputs.input("--data", &data);
+    outputs.folder("--out", &args.out)?;
+    let mut cfg = ReproduceConfig::full(args.seed);
+    if args.tiny_grid {
+        cfg.grid = ValidationGrid::tiny();
+    }
+    let buildings = args.buildings.unwrap_or(cfg.test_buildings.clone());
+    check_buildings("--buildings", &buildings)?;
+    let start = Instant::now();
+    let all = load_data(&data)?;
+    let mut vals = Vec::new();
+    for b in &buildings {
+        eprintln!("validating the settings for test building {b} (on the other two buildings)");
+        vals.push(validate_for(&all, b, &cfg)?);
+    }
+    let settings: BTreeMap<String, ModelSettings> = vals
+        .iter()
+        .map(|v| (v.test_building.clone(), v.chosen.clone()))
+        .collect();
+    let json = serde_json::json!({ "settings": settings, "validation": vals });
+    let md = validation_markdown(&vals, start.elapsed().as_secs_f64());
+    write_folder(&args.out, |dir| {
+        std::fs::write(
+            dir.join("validation.json"),
+            serde_json::to_string_pretty(&json)?,
+        )?;
+        std::fs::write(dir.join("VALIDATION.md"), &md)?;
+        Ok(())
+    })?;
+    eprintln!(
+        "validation done in {:.1} s; wrote {}",
+        start.elapsed().as_secs_f64(),
+        args.out.join("VALIDATION.md").display()
+    );
+    Ok(())
+}
+
+/// Reads the per-building settings of a validation.json.
+fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSettings>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let s = v
+        .get("settings")
+        .with_context(|| format!("{}: no \"settings\" object", path.display()))?;
+    serde_json::from_value(s.clone())
+        .with_context(|| format!("{}: bad \"settings\"", path.display()))
 }
 
 /// Runs `graphspn reproduce`.
@@ -154,11 +244,11 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     if args.no_novelty {
         cfg.novelty = false;
     }
-    if let Some(e) = args.evidence_exponent {
-        if !(e.is_finite() && e > 0.0) {
-            bail!("--evidence-exponent {e}: must be finite and > 0");
-        }
-        cfg.evidence_exponent = e;
+    if args.tiny_grid {
+        cfg.grid = ValidationGrid::tiny();
+    }
+    if let Some(p) = &args.settings {
+        cfg.settings = Some(read_settings(p)?);
     }
     if let Some(t) = &args.training {
         let mut v = cfg.training.to_value();

@@ -3,3 +3,4 @@
 pub mod evidence;
 pub mod report;
 pub mod reproduce;
+pub mod validate;

@@ -3,10 +3,11 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::evidence::derive_seed;
 use super::evidence::{NoiseLevel, PAPER_TABLE1};
 use super::reproduce::{
-    BuildingSetup, Experiment, MODELS, ReproduceConfig, ReproduceError, Reproduction, roc_curve,
-    run_graph,
+    BuildingSetup, Experiment, GraphResult, MODELS, NUM_MODELS, ReproduceConfig, ReproduceError,
+    Reproduction, roc_curve, run_graph,
 };
 use crate::map::TopoMap;
 use crate::render::{RenderOptions, escape_xml, render_svg};
@@ -44,13 +45,6 @@ pub fn mean_std(v: &[f64]) -> Option<(f64, f64)> {
     Some((m, s))
 }
 
-fn pct(ms: Option<(f64, f64)>) -> String {
-    match ms {
-        Some((m, s)) => format!("{:.1} ± {:.1}", 100.0 * m, 100.0 * s),
-        None => "–".into(),
-    }
-}
-
 /// Accuracies of `model` (index into [`MODELS`], or `None` = evidence only) for
 /// one building (or all when `building` is `None`), experiment and level.
 pub fn select(
@@ -79,6 +73,95 @@ fn levels_of(rep: &Reproduction) -> Vec<u8> {
     l
 }
 
+/// Number of bootstrap resamples behind every interval.
+pub const BOOTSTRAP_RESAMPLES: usize = 2000;
+
+/// Mean of `per_map` and its 95% percentile bootstrap interval over maps
+/// (resampling maps with replacement, `BOOTSTRAP_RESAMPLES` times, seeded by
+/// `seed`): `(mean, low, high)`, or `None` when empty.
+pub fn bootstrap_ci(per_map: &[f64], seed: u64) -> Option<(f64, f64, f64)> {
+    use rand::{Rng, SeedableRng};
+    let v: Vec<f64> = per_map.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let n = v.len();
+    let m = v.iter().sum::<f64>() / n as f64;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut means: Vec<f64> = (0..BOOTSTRAP_RESAMPLES)
+        .map(|_| (0..n).map(|_| v[rng.random_range(0..n)]).sum::<f64>() / n as f64)
+        .collect();
+    means.sort_by(f64::total_cmp);
+    let q = |p: f64| means[((p * (means.len() - 1) as f64).round() as usize).min(means.len() - 1)];
+    Some((m, q(0.025), q(0.975)))
+}
+
+/// Per-map means (over rounds) of `value` for the graphs of one building (or
+/// all), experiment and level, in map order.
+pub fn per_map(
+    rep: &Reproduction,
+    building: Option<&str>,
+    e: Experiment,
+    level: u8,
+    value: impl Fn(&GraphResult) -> f64,
+) -> Vec<f64> {
+    let mut maps: std::collections::BTreeMap<(&str, &str), Vec<f64>> = Default::default();
+    for g in &rep.graphs {
+        if g.experiment == e && g.level == level && building.is_none_or(|b| g.building == b) {
+            let v = value(g);
+            if v.is_finite() {
+                maps.entry((g.building.as_str(), g.map.as_str()))
+                    .or_default()
+                    .push(v);
+            }
+        }
+    }
+    maps.values()
+        .map(|v| v.iter().sum::<f64>() / v.len() as f64)
+        .collect()
+}
+
+/// Index (into [`MODELS`]) of the better tuned MRF in a cell (higher mean accuracy).
+pub fn best_baseline(
+    rep: &Reproduction,
+    building: Option<&str>,
+    e: Experiment,
+    level: u8,
+) -> usize {
+    let m = |k: usize| {
+        let v = per_map(rep, building, e, level, |g| g.accuracy[k]);
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    if m(2) > m(1) { 2 } else { 1 }
+}
+
+fn ci_seed(rep: &Reproduction, building: Option<&str>, e: Experiment, level: u8, k: u64) -> u64 {
+    let b = building
+        .and_then(|b| crate::map::cold::BUILDINGS.iter().position(|x| *x == b))
+        .map(|i| i as u64 + 1)
+        .unwrap_or(0);
+    derive_seed(rep.seed, &[99, b, e as u64, level as u64, k])
+}
+
+fn fmt_ci(ci: Option<(f64, f64, f64)>) -> String {
+    match ci {
+        Some((m, lo, hi)) => format!("{:.1} [{:.1}, {:.1}]", 100.0 * m, 100.0 * lo, 100.0 * hi),
+        None => "–".into(),
+    }
+}
+
+fn building_rows(rep: &Reproduction) -> Vec<Option<&str>> {
+    let mut buildings: Vec<Option<&str>> = rep
+        .buildings
+        .iter()
+        .map(|b| Some(b.building.as_str()))
+        .collect();
+    if rep.buildings.len() > 1 {
+        buildings.push(None);
+    }
+    buildings
+}
+
 fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool) -> String {
     let levels = levels_of(rep);
     let mut s = String::new();
@@ -93,27 +176,30 @@ fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool) -> String
         }
     }
     let _ = writeln!(s, "{head}\n{rule}");
-    let mut buildings: Vec<Option<&str>> = rep
-        .buildings
-        .iter()
-        .map(|b| Some(b.building.as_str()))
-        .collect();
-    if rep.buildings.len() > 1 {
-        buildings.push(None);
-    }
-    for b in buildings {
-        let rows: Vec<(&str, Option<usize>)> = vec![
-            ("GraphSPN", Some(0)),
-            ("MRF-2", Some(1)),
-            ("MRF-3", Some(2)),
-            ("evidence only", None),
-        ];
+    for b in building_rows(rep) {
+        let mut rows: Vec<(&str, Option<usize>)> = MODELS
+            .iter()
+            .enumerate()
+            .map(|(k, m)| (*m, Some(k)))
+            .collect();
+        rows.push(("evidence only", None));
         for (name, k) in rows {
             let _ = write!(s, "| {} | {name} |", b.unwrap_or("**all**"));
             for &l in &levels {
-                let _ = write!(s, " {} |", pct(mean_std(&select(rep, k, b, e, l))));
+                let v = per_map(rep, b, e, l, |g| match k {
+                    Some(k) => g.accuracy[k],
+                    None => g.evidence_only,
+                });
+                let seed = ci_seed(rep, b, e, l, k.map(|k| k as u64 + 1).unwrap_or(0));
+                let _ = write!(s, " {} |", fmt_ci(bootstrap_ci(&v, seed)));
                 if with_paper && (l == 2 || l == 5) {
-                    let p = b.and_then(|b| paper_table2(name, l, b));
+                    let paper_name = match name {
+                        "MRF-2 paper" => "MRF-2",
+                        "MRF-3 paper" => "MRF-3",
+                        "GraphSPN" => "GraphSPN",
+                        _ => "",
+                    };
+                    let p = b.and_then(|b| paper_table2(paper_name, l, b));
                     let _ = write!(
                         s,
                         " {} |",
@@ -127,15 +213,133 @@ fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool) -> String
     s
 }
 
+/// Paired differences GraphSPN − the better tuned MRF (per map, then bootstrap over maps).
+fn paired_table(rep: &Reproduction, e: Experiment) -> String {
+    let levels = levels_of(rep);
+    let mut s = String::new();
+    let mut head = "| Test building |".to_string();
+    let mut rule = "|---|".to_string();
+    for l in &levels {
+        let _ = write!(head, " NL{l} |");
+        rule.push_str("---|");
+    }
+    let _ = writeln!(s, "{head}\n{rule}");
+    for b in building_rows(rep) {
+        let _ = write!(s, "| {} |", b.unwrap_or("**all**"));
+        for &l in &levels {
+            let k = best_baseline(rep, b, e, l);
+            let v = per_map(rep, b, e, l, |g| g.accuracy[0] - g.accuracy[k]);
+            let ci = bootstrap_ci(&v, ci_seed(rep, b, e, l, 50));
+            let _ = write!(s, " {} vs {} |", fmt_ci(ci), MODELS[k]);
+        }
+        s.push('\n');
+    }
+    s
+}
+
 fn bp_convergence(rep: &Reproduction) -> String {
     let n = rep.graphs.len().max(1) as f64;
-    let c2 = rep.graphs.iter().filter(|g| g.bp_converged[0]).count() as f64;
-    let c3 = rep.graphs.iter().filter(|g| g.bp_converged[1]).count() as f64;
+    let parts: Vec<String> = (0..NUM_MODELS - 1)
+        .map(|k| {
+            let c = rep.graphs.iter().filter(|g| g.bp_converged[k]).count() as f64;
+            format!("{:.1}% ({})", 100.0 * c / n, MODELS[k + 1])
+        })
+        .collect();
     format!(
-        "Loopy BP converged on {:.1}% (MRF-2) and {:.1}% (MRF-3) of the test graphs.\n",
-        100.0 * c2 / n,
-        100.0 * c3 / n
+        "Loopy BP converged on {} of the test graphs.\n",
+        parts.join(", ")
     )
+}
+
+/// VALIDATION.md of `graphspn validate`: the chosen settings and every candidate's score.
+pub fn validation_markdown(vals: &[super::validate::Validation], seconds: f64) -> String {
+    let mut s = format!(
+        "# Validation of every model's settings\n\nLeave-one-training-building-out, per \
+         test building; the test building is never read. Run time {seconds:.1} s.\n\n"
+    );
+    let _ = writeln!(
+        s,
+        "| Test building | GraphSPN | MRF-2 (tuned) | MRF-3 (tuned) |\n|---|---|---|---|"
+    );
+    for v in vals {
+        let st = &v.chosen;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} |",
+            v.test_building,
+            st.graphspn.label(),
+            st.mrf2.label(),
+            st.mrf3.label()
+        );
+    }
+    s.push_str(&validation_tables(vals, usize::MAX));
+    s
+}
+
+fn validation_tables(vals: &[super::validate::Validation], keep: usize) -> String {
+    let mut s = String::new();
+    for v in vals {
+        let _ = writeln!(
+            s,
+            "\nValidation for test building {} (folds: {}); mean accuracy in %, \
+             classification and placeholders pooled, per fold and mean; best first:\n",
+            v.test_building,
+            v.folds.join("; ")
+        );
+        let _ = writeln!(
+            s,
+            "| Model | Setting | per fold | mean |\n|---|---|---|---|"
+        );
+        for model in ["GraphSPN", "MRF-2", "MRF-3"] {
+            let mut c: Vec<_> = v.candidates.iter().filter(|c| c.model == model).collect();
+            c.sort_by(|a, b| b.score.total_cmp(&a.score));
+            let n = c.len();
+            for (i, c) in c.iter().enumerate() {
+                if i < keep || i + 1 == n {
+                    let pf: Vec<String> = c
+                        .per_fold
+                        .iter()
+                        .map(|x| format!("{:.1}", 100.0 * x))
+                        .collect();
+                    let _ = writeln!(
+                        s,
+                        "| {} | {}{} | {} | {:.1} |",
+                        c.model,
+                        c.setting,
+                        if i + 1 == n && n > keep {
+                            " (worst)"
+                        } else {
+                            ""
+                        },
+                        pf.join(" / "),
+                        100.0 * c.score
+                    );
+                }
+            }
+        }
+    }
+    s
+}
+
+fn settings_section(rep: &Reproduction) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| Test building | GraphSPN | MRF-2 (tuned) | MRF-3 (tuned) |\n|---|---|---|---|"
+    );
+    for b in &rep.buildings {
+        let st = &b.settings;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} |",
+            b.building,
+            st.graphspn.label(),
+            st.mrf2.label(),
+            st.mrf3.label()
+        );
+    }
+    s.push_str(&validation_tables(&rep.validation, 5));
+    s
 }
 
 /// Writes REPORT.md, results.json and the figures into `out`.
@@ -230,9 +434,16 @@ fn report_markdown(
     );
     let _ = writeln!(
         s,
-        "Training settings: `{}`; GraphSPN evidence exponent {}.\n",
-        rep.training, cfg.evidence_exponent
+        "Base training settings: `{}`.\n\n\
+         ## Models and their settings\n\n\
+         Every setting below was chosen by leave-one-training-building-out validation \
+         on the test building's two training buildings only (`graphspn validate`). \
+         \"MRF-2 paper\" and \"MRF-3 paper\" are the paper-style baselines: raw joint \
+         co-occurrence frequencies and the raw evidence.\n",
+        rep.training
     );
+    s.push_str(&settings_section(rep));
+    s.push('\n');
     let _ = writeln!(s, "## Test maps\n");
     let _ = writeln!(
         s,
@@ -251,21 +462,30 @@ fn report_markdown(
     let _ = writeln!(
         s,
         "\n## Classification accuracy over all places (paper Fig. 5)\n\n\
-         Mean ± std over the test graphs, in %. Paper: GraphSPN above 80% at every \
+         Mean over the test maps (each map's mean over its evidence rounds) with a \
+         map-level bootstrap 95% interval, in %. Paper: GraphSPN above 80% at every \
          noise level and test building (read from Fig. 5; the text gives no exact \
          values); MRF-2 good at low noise and deteriorating quickly; MRF-3 worse than MRF-2.\n"
     );
     s.push_str(&accuracy_table(rep, Experiment::Classification, false));
+    let _ = writeln!(
+        s,
+        "\nPaired difference GraphSPN − the better tuned MRF of the cell (percentage points, \
+         per map then bootstrap over maps); an interval above 0 means GraphSPN wins:\n"
+    );
+    s.push_str(&paired_table(rep, Experiment::Classification));
     s.push('\n');
     s.push_str(&bp_convergence(rep));
     let _ = writeln!(
         s,
         "\n## Placeholders without evidence (paper Table 2)\n\n\
-         Accuracy over placeholders only (they get a uniform evidence row), mean ± std \
-         over the test graphs with at least one placeholder, in %; the paper's numbers \
-         (NL2 and NL5 only) beside ours.\n"
+         Accuracy over placeholders only (they get a uniform evidence row), mean over \
+         the test maps with at least one placeholder and bootstrap 95% interval, in %; \
+         the paper's numbers (NL2 and NL5 only) beside ours (its MRFs beside our paper-style MRFs).\n"
     );
     s.push_str(&accuracy_table(rep, Experiment::Placeholders, true));
+    let _ = writeln!(s, "\nPaired difference GraphSPN − the better tuned MRF:\n");
+    s.push_str(&paired_table(rep, Experiment::Placeholders));
     if let Some(a) = rep.auc {
         let _ = writeln!(
             s,
@@ -278,17 +498,32 @@ fn report_markdown(
             rep.novelty.iter().filter(|n| n.novel).count(),
             rep.novelty.iter().filter(|n| !n.novel).count()
         );
-        let _ = writeln!(s, "| Model | AUC |\n|---|---|");
+        let _ = writeln!(
+            s,
+            "Pooled AUC ranks all labellings of all maps together (it also measures how \
+             comparable the scores are across maps); within-map AUC ranks each map's own \
+             labellings only, averaged over maps. MRF scores use the Bethe approximation of log Z.\n"
+        );
+        let _ = writeln!(s, "| Model | pooled AUC | within-map AUC |\n|---|---|---|");
         for (k, m) in MODELS.iter().enumerate() {
-            let _ = writeln!(s, "| {m} | {:.3} |", a[k]);
+            let w = rep.within_map.map(|w| w[k]).unwrap_or(f64::NAN);
+            let _ = writeln!(s, "| {m} | {:.3} | {w:.3} |", a[k]);
+        }
+        let mut variants: Vec<&str> = Vec::new();
+        for n in &rep.novelty {
+            if !variants.contains(&n.variant.as_str()) {
+                variants.push(&n.variant);
+            }
         }
         let _ = writeln!(
             s,
-            "\nMean per-variable log-likelihood by variant:\n\n| Variant | GraphSPN | MRF-2 | MRF-3 |\n|---|---|---|---|"
+            "\nMean per-variable log-likelihood by variant:\n\n| Variant | {} |\n|---|{}",
+            MODELS.join(" | "),
+            "---|".repeat(NUM_MODELS)
         );
-        for v in ["original", "1PO<->2PO", "CR<->DW", "CR<->1PO"] {
+        for v in variants {
             let _ = write!(s, "| {v} |");
-            for k in 0..3 {
+            for k in 0..NUM_MODELS {
                 let vals: Vec<f64> = rep
                     .novelty
                     .iter()
@@ -350,7 +585,7 @@ fn report_markdown(
 
 // ---------------------------------------------------------------- figures
 
-const MODEL_COLOURS: [&str; 3] = ["#d62728", "#1f77b4", "#2ca02c"];
+const MODEL_COLOURS: [&str; NUM_MODELS] = ["#d62728", "#1f77b4", "#2ca02c", "#9ecae1", "#a1d99b"];
 
 /// An SVG line chart frame: returns (svg prefix, x→px, y→px) for data in [x0,x1]×[0,1].
 struct Frame {
@@ -452,7 +687,7 @@ fn legend(s: &mut String, x: f64, y: f64, items: &[(&str, &str)]) {
     }
 }
 
-/// Accuracy (%) vs noise level for one building: one line per model, ± std bars.
+/// Accuracy (%) vs noise level for one building: one line per model, bars = map-level bootstrap 95% intervals.
 pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
     let levels = levels_of(rep);
     let (lo, hi) = (
@@ -483,27 +718,40 @@ pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
         );
     }
     let mut items = Vec::new();
-    for (k, model) in [Some(0), Some(1), Some(2), None].into_iter().enumerate() {
+    let mut all_models: Vec<Option<usize>> = (0..NUM_MODELS).map(Some).collect();
+    all_models.push(None);
+    for (k, model) in all_models.into_iter().enumerate() {
         let (col, name, dash) = match model {
-            Some(m) => (MODEL_COLOURS[m], MODELS[m], false),
+            Some(m) => (MODEL_COLOURS[m], MODELS[m], m >= 3),
             None => ("#888888", "evidence only", true),
         };
         let mut pts = Vec::new();
         for &l in &levels {
-            if let Some((m, sd)) = mean_std(&select(
+            let v = per_map(
                 rep,
-                model,
                 Some(building),
                 Experiment::Classification,
                 l,
-            )) {
-                let x = fr.px(l as f64) + (k as f64 - 1.5) * 3.0;
+                |g| match model {
+                    Some(m) => g.accuracy[m],
+                    None => g.evidence_only,
+                },
+            );
+            let seed = ci_seed(
+                rep,
+                Some(building),
+                Experiment::Classification,
+                l,
+                model.map(|m| m as u64 + 1).unwrap_or(0),
+            );
+            if let Some((m, lo, hi)) = bootstrap_ci(&v, seed) {
+                let x = fr.px(l as f64) + (k as f64 - 2.5) * 3.0;
                 pts.push((x, fr.py(m)));
                 let _ = writeln!(
                     s,
                     r#"<line x1="{x:.1}" x2="{x:.1}" y1="{:.1}" y2="{:.1}" stroke="{col}"/>"#,
-                    fr.py((m - sd).max(0.0)),
-                    fr.py((m + sd).min(1.0))
+                    fr.py(lo),
+                    fr.py(hi)
                 );
             }
         }
@@ -547,7 +795,7 @@ pub fn roc_plot(rep: &Reproduction) -> String {
         true,
     ));
     let mut names = Vec::new();
-    for k in 0..3 {
+    for k in 0..NUM_MODELS {
         let pts: Vec<(f64, bool)> = rep.novelty.iter().map(|n| (n.score[k], n.novel)).collect();
         let curve: Vec<(f64, f64)> = roc_curve(&pts)
             .into_iter()
@@ -655,7 +903,7 @@ fn fig8_panel(
         render_svg(
             &relabel(map, &o.marginals[1]),
             &RenderOptions {
-                title: Some(format!("MRF-2 ({:.1}%)", 100.0 * acc[1])),
+                title: Some(format!("MRF-2 tuned ({:.1}%)", 100.0 * acc[1])),
                 ..RenderOptions::default()
             },
         ),

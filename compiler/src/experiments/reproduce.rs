@@ -26,12 +26,13 @@ use super::evidence::{
     EvidenceSimError, LevelStats, NoiseLevel, SimulatedEvidence, WrongClassDraw, derive_seed,
     level_statistics, map_truth, simulate_map_evidence_with,
 };
+use super::validate::{ModelSettings, MrfSetting, Validation, ValidationGrid, validate_for};
 use crate::decompose::{DecomposeError, Decomposition, DecompositionParams, decompose_best};
 use crate::instance::{Instance, InstanceError};
 use crate::interpreter::{Evaluator, Evidence, InferenceError};
 use crate::learn::{Model, Progress, TrainModelError, TrainingSettings, train_model};
 use crate::map::{ClassId, MapError, TopoMap, cold};
-use crate::mrf::{BpOptions, CooccurrenceParams, Mrf2, Mrf3, MrfError, MrfModel};
+use crate::mrf::{BpOptions, BpResult, CooccurrenceParams, Mrf2, Mrf3, MrfError, MrfModel};
 use crate::template::Template;
 
 /// Why a reproduction run failed.
@@ -124,49 +125,51 @@ pub struct ReproduceConfig {
     pub decomposition: DecompositionParams,
     /// GraphSPN training settings (the seed is replaced per building).
     pub training: TrainingSettings,
-    /// MRF potentials.
+    /// Potentials of the paper-style MRFs (raw joint frequencies by default).
     pub cooccurrence: CooccurrenceParams,
-    /// Loopy BP options.
+    /// Loopy BP options of the paper-style MRFs.
     pub bp: BpOptions,
+    /// The validation search that picks every model's settings on the training
+    /// buildings of each test building (ignored when `settings` is given).
+    pub grid: ValidationGrid,
+    /// Settings chosen beforehand (e.g. a saved validation), one per test
+    /// building; `None` runs the validation.
+    pub settings: Option<BTreeMap<String, ModelSettings>>,
     /// How wrong evidence classes are drawn (protocol as written, or the paper's effective noise).
     pub wrong_draw: WrongClassDraw,
     /// Run the novelty-detection experiment.
     pub novelty: bool,
-    /// GraphSPN only: each evidence row is raised to this power (then
-    /// renormalised) before inference; 1 = the evidence as simulated. A
-    /// calibration knob, to be chosen on training buildings only.
-    pub evidence_exponent: f64,
     /// Progress bars.
     pub progress: Progress,
 }
 
-/// GraphSPN's default evidence exponent: each simulated evidence row is squared and
-/// renormalised before GraphSPN inference (the MRFs get the raw rows). Chosen on the
-/// training buildings only (`--exclude B` runs: every split gains 5–10 points at
-/// NL4–6 for about 1 point at NL2–3; `docs/REPRODUCTION.md`); 1 = the paper's setup.
-pub const DEFAULT_EVIDENCE_EXPONENT: f64 = 2.0;
-
 impl ReproduceConfig {
-    /// The paper's protocol: 3 buildings, 5 maps, 3 rounds, NL1..6, D = 5 of 15.
+    /// The paper's protocol on every map of each test building (the paper used
+    /// 5): 3 buildings, 3 rounds, NL1..6, D = 5 of 15, validated settings.
     pub fn full(seed: u64) -> Self {
         ReproduceConfig {
             seed,
             test_buildings: cold::BUILDINGS.iter().map(|s| s.to_string()).collect(),
-            maps_per_building: 5,
+            maps_per_building: usize::MAX,
             rounds: 3,
             levels: NoiseLevel::all().to_vec(),
             decomposition: DecompositionParams::default(),
             training: TrainingSettings::default(),
             cooccurrence: CooccurrenceParams::default(),
-            bp: BpOptions::default(),
+            bp: BpOptions {
+                max_iterations: 200,
+                ..BpOptions::default()
+            },
             wrong_draw: WrongClassDraw::Others,
             novelty: true,
-            evidence_exponent: DEFAULT_EVIDENCE_EXPONENT,
+            grid: ValidationGrid::standard(),
+            settings: None,
             progress: Progress::Auto,
         }
     }
 
-    /// A reduced run: 1 building (Stockholm), 2 maps, NL2 and NL5, 1 round.
+    /// A reduced run: 1 building (Stockholm), 2 maps, NL2 and NL5, 1 round,
+    /// a tiny validation grid.
     pub fn quick(seed: u64) -> Self {
         let lv = |l| NoiseLevel::new(l).expect("levels 2 and 5 exist");
         ReproduceConfig {
@@ -178,6 +181,7 @@ impl ReproduceConfig {
                 max_iterations: 200,
                 ..BpOptions::default()
             },
+            grid: ValidationGrid::tiny(),
             ..ReproduceConfig::full(seed)
         }
     }
@@ -193,8 +197,12 @@ pub enum Experiment {
     Placeholders,
 }
 
-/// The models compared.
-pub const MODELS: [&str; 3] = ["GraphSPN", "MRF-2", "MRF-3"];
+/// Number of models compared.
+pub const NUM_MODELS: usize = 5;
+
+/// The models compared: GraphSPN and the MRFs with validated settings, then the
+/// paper-style MRFs (raw joint frequencies, raw evidence).
+pub const MODELS: [&str; NUM_MODELS] = ["GraphSPN", "MRF-2", "MRF-3", "MRF-2 paper", "MRF-3 paper"];
 
 /// One test graph's result.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -214,9 +222,9 @@ pub struct GraphResult {
     /// Accuracy of the evidence's argmax alone (ties split evenly).
     pub evidence_only: f64,
     /// Accuracy per model, in [`MODELS`] order (ties split evenly).
-    pub accuracy: [f64; 3],
-    /// Whether loopy BP converged, for MRF-2 and MRF-3.
-    pub bp_converged: [bool; 2],
+    pub accuracy: [f64; NUM_MODELS],
+    /// Whether loopy BP converged, for the MRFs ([`MODELS`] order without GraphSPN).
+    pub bp_converged: [bool; NUM_MODELS - 1],
 }
 
 /// One labelled map of the novelty experiment.
@@ -233,7 +241,7 @@ pub struct NoveltyResult {
     /// Number of variables (places).
     pub variables: usize,
     /// Log-likelihood per variable (natural log), in [`MODELS`] order.
-    pub score: [f64; 3],
+    pub score: [f64; NUM_MODELS],
 }
 
 /// Per-building facts.
@@ -247,6 +255,8 @@ pub struct BuildingInfo {
     pub test_maps: Vec<String>,
     /// Seconds spent training GraphSPN.
     pub train_seconds: f64,
+    /// The settings used (chosen by validation on the training buildings).
+    pub settings: ModelSettings,
 }
 
 /// Everything a run measured (written as results.json).
@@ -260,8 +270,8 @@ pub struct Reproduction {
     pub decompositions: (usize, usize),
     /// Training settings used (JSON).
     pub training: serde_json::Value,
-    /// GraphSPN evidence exponent used (1 = none).
-    pub evidence_exponent: f64,
+    /// The validation behind every building's settings (empty when settings were given).
+    pub validation: Vec<Validation>,
     /// Per building.
     pub buildings: Vec<BuildingInfo>,
     /// Per test graph.
@@ -269,7 +279,10 @@ pub struct Reproduction {
     /// Novelty experiment.
     pub novelty: Vec<NoveltyResult>,
     /// Area under the ROC curve per model ([`MODELS`] order), pooled over buildings.
-    pub auc: Option<[f64; 3]>,
+    pub auc: Option<[f64; NUM_MODELS]>,
+    /// Within-map ranking: per model, the share of (novel, non-novel) labelling
+    /// pairs of the same map that the model ranks correctly (ties ½), averaged over maps.
+    pub within_map: Option<[f64; NUM_MODELS]>,
     /// Table 1 statistics of the evidence simulated on the test maps:
     /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
     pub table1: Vec<(u8, f64, f64, f64, f64)>,
@@ -283,10 +296,16 @@ pub struct BuildingSetup {
     pub building: String,
     /// The GraphSPN model.
     pub model: Model,
-    /// MRF-2.
+    /// MRF-2 with validated settings.
     pub mrf2: Mrf2,
-    /// MRF-3.
+    /// MRF-3 with validated settings.
     pub mrf3: Mrf3,
+    /// Paper-style MRF-2 (raw joint frequencies).
+    pub mrf2_paper: Mrf2,
+    /// Paper-style MRF-3.
+    pub mrf3_paper: Mrf3,
+    /// Settings of every model.
+    pub settings: ModelSettings,
     /// Test maps.
     pub maps: Vec<TopoMap>,
     /// Per test map: its instance's decompositions and an evaluator of its SPN.
@@ -309,6 +328,8 @@ const TAG_PICK: u64 = 1;
 const TAG_TRAIN: u64 = 2;
 const TAG_DECOMPOSE: u64 = 3;
 const TAG_EVIDENCE: u64 = 4;
+/// Seed tag of the validation's random steps.
+pub(crate) const TAG_VALIDATE: u64 = 5;
 
 /// Trains the three models for `test_building` on the other buildings' maps in
 /// `all` (building name → maps), picks the test maps and builds their instances.
@@ -316,6 +337,7 @@ pub fn setup_building(
     all: &BTreeMap<String, Vec<TopoMap>>,
     test_building: &str,
     cfg: &ReproduceConfig,
+    settings: ModelSettings,
 ) -> Result<BuildingSetup, ReproduceError> {
     let b = building_index(test_building)?;
     let trained_on: Vec<String> = all
@@ -330,27 +352,18 @@ pub fn setup_building(
     let candidates = all
         .get(test_building)
         .ok_or_else(|| ReproduceError::Config(format!("no maps for {test_building}")))?;
-    if candidates.len() < cfg.maps_per_building || cfg.maps_per_building == 0 {
-        return Err(ReproduceError::Config(format!(
-            "{test_building} has {} maps, {} requested",
-            candidates.len(),
-            cfg.maps_per_building
-        )));
-    }
-    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(cfg.seed, &[TAG_PICK, b]));
-    let mut picked = sample(&mut rng, candidates.len(), cfg.maps_per_building).into_vec();
-    picked.sort_unstable();
-    let maps: Vec<TopoMap> = picked.iter().map(|&i| candidates[i].clone()).collect();
-
-    let settings = TrainingSettings {
+    let maps = pick_maps(candidates, cfg.maps_per_building, cfg.seed, b, TAG_PICK)
+        .map_err(|e| ReproduceError::Config(format!("{test_building}: {e}")))?;
+    let training = settings.graphspn.training.clone();
+    let settings_g = TrainingSettings {
         seed: derive_seed(cfg.seed, &[TAG_TRAIN, b]),
-        ..cfg.training.clone()
+        ..training
     };
     let t0 = std::time::Instant::now();
     let (model, _) = train_model(
         &train_maps,
         &Template::paper_set(),
-        &settings,
+        &settings_g,
         Progress::Hidden,
     )
     .map_err(|source| ReproduceError::Train {
@@ -362,10 +375,12 @@ pub fn setup_building(
         what: format!("training for {test_building}"),
         source,
     };
-    let mrf2 = Mrf2::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
-    let mrf3 = Mrf3::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
+    let mrf2 = Mrf2::train(&train_maps, &settings.mrf2.potentials).map_err(mrf)?;
+    let mrf3 = Mrf3::train(&train_maps, &settings.mrf3.potentials).map_err(mrf)?;
+    let mrf2_paper = Mrf2::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
+    let mrf3_paper = Mrf3::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
     let instances = maps
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(m, map)| build_instance(&model, map, cfg, b, m as u64))
         .collect::<Result<Vec<_>, _>>()?;
@@ -374,19 +389,47 @@ pub fn setup_building(
         trained_on,
         test_maps: maps.iter().map(|m| m.name.clone()).collect(),
         train_seconds,
+        settings: settings.clone(),
     };
     Ok(BuildingSetup {
         building: test_building.into(),
         model,
         mrf2,
         mrf3,
+        mrf2_paper,
+        mrf3_paper,
+        settings,
         maps,
         instances,
         info,
     })
 }
 
-fn build_instance(
+/// `count` maps of `candidates` chosen at random (seeded by `(seed, tag, b)`),
+/// in their original order; all of them when `count ≥ candidates.len()`.
+pub(crate) fn pick_maps(
+    candidates: &[TopoMap],
+    count: usize,
+    seed: u64,
+    b: u64,
+    tag: u64,
+) -> Result<Vec<TopoMap>, String> {
+    if count == 0 || candidates.is_empty() {
+        return Err(format!(
+            "{} maps available, {count} requested",
+            candidates.len()
+        ));
+    }
+    if count >= candidates.len() {
+        return Ok(candidates.to_vec());
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[tag, b]));
+    let mut picked = sample(&mut rng, candidates.len(), count).into_vec();
+    picked.sort_unstable();
+    Ok(picked.iter().map(|&i| candidates[i].clone()).collect())
+}
+
+pub(crate) fn build_instance(
     model: &Model,
     map: &TopoMap,
     cfg: &ReproduceConfig,
@@ -437,7 +480,7 @@ pub struct GraphOutcome {
     /// The simulated evidence.
     pub evidence: SimulatedEvidence,
     /// Marginals per model ([`MODELS`] order).
-    pub marginals: [Vec<Vec<f64>>; 3],
+    pub marginals: [Vec<Vec<f64>>; NUM_MODELS],
 }
 
 /// Runs the three models on map `m` of `setup` at `level`, round `round`.
@@ -473,33 +516,17 @@ pub fn run_graph(
     let scored: Vec<usize> = (0..map.num_places())
         .filter(|&i| !placeholders || map.place(i).placeholder)
         .collect();
-    let mut evaluator = setup.instances[m].1.clone();
-    let fixed = vec![None; map.num_places()];
-    let rows = if cfg.evidence_exponent == 1.0 {
-        ev.rows.clone()
-    } else {
-        ev.rows
-            .iter()
-            .map(|r| {
-                let p: Vec<f64> = r.iter().map(|x| x.powf(cfg.evidence_exponent)).collect();
-                let s: f64 = p.iter().sum();
-                p.into_iter().map(|x| x / s).collect()
-            })
-            .collect()
-    };
-    let g = evaluator
-        .marginals(&fixed, &Evidence::from_rows(rows))
-        .map_err(|source| ReproduceError::Inference {
-            map: map.name.clone(),
-            source,
-        })?
-        .probs;
-    let mrf = |source| ReproduceError::Mrf {
-        what: map.name.clone(),
-        source,
-    };
-    let r2 = setup.mrf2.infer(map, &ev.rows, &cfg.bp).map_err(mrf)?;
-    let r3 = setup.mrf3.infer(map, &ev.rows, &cfg.bp).map_err(mrf)?;
+    let g = graphspn_marginals(
+        &setup.instances[m].1,
+        map,
+        &ev.rows,
+        setup.settings.graphspn.evidence_exponent,
+    )?;
+    let r2 = mrf_marginals(&setup.mrf2, &setup.settings.mrf2, map, &ev.rows)?;
+    let r3 = mrf_marginals(&setup.mrf3, &setup.settings.mrf3, map, &ev.rows)?;
+    let paper = MrfSetting::paper(cfg.bp);
+    let p2 = mrf_marginals(&setup.mrf2_paper, &paper, map, &ev.rows)?;
+    let p3 = mrf_marginals(&setup.mrf3_paper, &paper, map, &ev.rows)?;
     let result = GraphResult {
         building: setup.building.clone(),
         map: map.name.clone(),
@@ -512,14 +539,67 @@ pub fn run_graph(
             accuracy(&g, &truth, &scored),
             accuracy(&r2.marginals, &truth, &scored),
             accuracy(&r3.marginals, &truth, &scored),
+            accuracy(&p2.marginals, &truth, &scored),
+            accuracy(&p3.marginals, &truth, &scored),
         ],
-        bp_converged: [r2.converged, r3.converged],
+        bp_converged: [r2.converged, r3.converged, p2.converged, p3.converged],
     };
     Ok(GraphOutcome {
         result,
         evidence: ev,
-        marginals: [g, r2.marginals, r3.marginals],
+        marginals: [g, r2.marginals, r3.marginals, p2.marginals, p3.marginals],
     })
+}
+
+/// Each row raised to `exponent` and renormalised (`exponent = 1`: unchanged).
+pub fn temper_rows(rows: &[Vec<f64>], exponent: f64) -> Vec<Vec<f64>> {
+    if exponent == 1.0 {
+        return rows.to_vec();
+    }
+    rows.iter()
+        .map(|r| {
+            let p: Vec<f64> = r.iter().map(|x| x.powf(exponent)).collect();
+            let s: f64 = p.iter().sum();
+            p.into_iter().map(|x| x / s).collect()
+        })
+        .collect()
+}
+
+/// GraphSPN marginals of `map` given evidence rows tempered by `exponent`.
+pub fn graphspn_marginals(
+    evaluator: &Evaluator,
+    map: &TopoMap,
+    rows: &[Vec<f64>],
+    exponent: f64,
+) -> Result<Vec<Vec<f64>>, ReproduceError> {
+    let mut evaluator = evaluator.clone();
+    let fixed = vec![None; map.num_places()];
+    Ok(evaluator
+        .marginals(&fixed, &Evidence::from_rows(temper_rows(rows, exponent)))
+        .map_err(|source| ReproduceError::Inference {
+            map: map.name.clone(),
+            source,
+        })?
+        .probs)
+}
+
+/// MRF marginals of `map` by loopy BP with the setting's evidence exponent and BP options.
+pub fn mrf_marginals(
+    model: &impl MrfModel,
+    setting: &MrfSetting,
+    map: &TopoMap,
+    rows: &[Vec<f64>],
+) -> Result<BpResult, ReproduceError> {
+    model
+        .infer(
+            map,
+            &temper_rows(rows, setting.evidence_exponent),
+            &setting.bp,
+        )
+        .map_err(|source| ReproduceError::Mrf {
+            what: map.name.clone(),
+            source,
+        })
 }
 
 /// A novelty-experiment labelling: `(name, novel, classes swapped)`.
@@ -586,12 +666,21 @@ pub fn run_novelty(
             what: map.name.clone(),
             source,
         };
+        let st = &setup.settings;
         let l2 = setup
             .mrf2
-            .log_likelihood_labelled(map, &labels, &cfg.bp)
+            .log_likelihood_labelled(map, &labels, &st.mrf2.bp)
             .map_err(mrf)?;
         let l3 = setup
             .mrf3
+            .log_likelihood_labelled(map, &labels, &st.mrf3.bp)
+            .map_err(mrf)?;
+        let p2 = setup
+            .mrf2_paper
+            .log_likelihood_labelled(map, &labels, &cfg.bp)
+            .map_err(mrf)?;
+        let p3 = setup
+            .mrf3_paper
             .log_likelihood_labelled(map, &labels, &cfg.bp)
             .map_err(mrf)?;
         out.push(NoveltyResult {
@@ -600,7 +689,13 @@ pub fn run_novelty(
             variant: name.into(),
             novel,
             variables: map.num_places(),
-            score: [g / n, l2.log_likelihood / n, l3.log_likelihood / n],
+            score: [
+                g / n,
+                l2.log_likelihood / n,
+                l3.log_likelihood / n,
+                p2.log_likelihood / n,
+                p3.log_likelihood / n,
+            ],
         });
     }
     Ok(out)
@@ -643,6 +738,23 @@ pub fn auc(points: &[(f64, bool)]) -> f64 {
         .sum()
 }
 
+/// The within-map ranking measure of model `k`: for each map, the AUC of its
+/// own labellings (novel vs not), averaged over the maps that have both kinds.
+pub fn within_map_auc(novelty: &[NoveltyResult], k: usize) -> f64 {
+    let mut maps: BTreeMap<(&str, &str), Vec<(f64, bool)>> = BTreeMap::new();
+    for n in novelty {
+        maps.entry((n.building.as_str(), n.map.as_str()))
+            .or_default()
+            .push((n.score[k], n.novel));
+    }
+    let per: Vec<f64> = maps
+        .values()
+        .filter(|p| p.iter().any(|x| x.1) && p.iter().any(|x| !x.1))
+        .map(|p| auc(p))
+        .collect();
+    per.iter().sum::<f64>() / per.len().max(1) as f64
+}
+
 /// Loads every building's maps.
 pub fn load_data(data: &Path) -> Result<BTreeMap<String, Vec<TopoMap>>, ReproduceError> {
     cold::BUILDINGS
@@ -664,22 +776,27 @@ pub fn run(
     all: &BTreeMap<String, Vec<TopoMap>>,
     cfg: &ReproduceConfig,
 ) -> Result<(Reproduction, Vec<BuildingSetup>), ReproduceError> {
-    if !(cfg.evidence_exponent.is_finite() && cfg.evidence_exponent > 0.0) {
-        return Err(ReproduceError::Config(format!(
-            "evidence exponent must be finite and > 0, got {}",
-            cfg.evidence_exponent
-        )));
-    }
     if cfg.levels.is_empty() || cfg.rounds == 0 {
         return Err(ReproduceError::Config(
             "need at least one level and one round".into(),
         ));
     }
-    let setups = cfg
-        .test_buildings
-        .iter()
-        .map(|b| setup_building(all, b, cfg))
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut validation = Vec::new();
+    let mut setups = Vec::new();
+    for b in &cfg.test_buildings {
+        let settings = match &cfg.settings {
+            Some(given) => given.get(b).cloned().ok_or_else(|| {
+                ReproduceError::Config(format!("no settings given for test building {b}"))
+            })?,
+            None => {
+                let v = validate_for(all, b, cfg)?;
+                let chosen = v.chosen.clone();
+                validation.push(v);
+                chosen
+            }
+        };
+        setups.push(setup_building(all, b, cfg, settings)?);
+    }
     // Every test graph: (setup, map, level, round, experiment).
     let mut jobs = Vec::new();
     for (s, setup) in setups.iter().enumerate() {
@@ -705,6 +822,7 @@ pub fn run(
     bar.finish_and_clear();
     let mut novelty = Vec::new();
     let mut auc_v = None;
+    let mut within = None;
     if cfg.novelty {
         let njobs: Vec<(usize, usize)> = setups
             .iter()
@@ -722,12 +840,15 @@ pub fn run(
             .collect::<Result<Vec<_>, _>>()?;
         bar.finish_and_clear();
         novelty = per.into_iter().flatten().collect();
-        let mut a = [0.0; 3];
-        for (k, slot) in a.iter_mut().enumerate() {
+        let mut a = [0.0; NUM_MODELS];
+        let mut w = [0.0; NUM_MODELS];
+        for k in 0..NUM_MODELS {
             let pts: Vec<(f64, bool)> = novelty.iter().map(|n| (n.score[k], n.novel)).collect();
-            *slot = auc(&pts);
+            a[k] = auc(&pts);
+            w[k] = within_map_auc(&novelty, k);
         }
         auc_v = Some(a);
+        within = Some(w);
     }
     // Table 1 statistics on the test maps' ground truth.
     let truths: Vec<Vec<ClassId>> = setups
@@ -761,11 +882,12 @@ pub fn run(
         paper_noise: cfg.wrong_draw == WrongClassDraw::AnyClass,
         decompositions: (cfg.decomposition.count, cfg.decomposition.candidates),
         training: cfg.training.to_value(),
-        evidence_exponent: cfg.evidence_exponent,
+        validation,
         buildings: setups.iter().map(|s| s.info.clone()).collect(),
         graphs,
         novelty,
         auc: auc_v,
+        within_map: within,
         table1,
         seconds: 0.0,
     };

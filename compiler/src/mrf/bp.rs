@@ -55,7 +55,8 @@ use std::sync::Arc;
 pub const MAX_ARITY: usize = 3;
 
 /// The order in which messages are updated; see the module docs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Schedule {
     /// All messages from the previous sweep's messages (flooding).
     Parallel,
@@ -65,7 +66,8 @@ pub enum Schedule {
 }
 
 /// Options of loopy belief propagation.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct BpOptions {
     /// Damping `d ∈ [0, 1)`: new message = `(1 − d)·update + d·old` (probabilities).
     pub damping: f64,

@@ -13,7 +13,7 @@ pub mod factor_graph;
 pub mod model;
 
 pub use bp::{BpOptions, BpResult, Schedule, loopy_bp};
-pub use factor_graph::{ExactResult, Factor, FactorGraph, exact_inference};
+pub use factor_graph::{ExactResult, Factor, FactorGraph, exact_inference, variable_elimination};
 pub use model::{
     Cliques, CooccurrenceMrf, CooccurrenceParams, LabelledLikelihood, Mrf2, Mrf3, MrfModel,
     Normalisation,

@@ -39,15 +39,22 @@
 //!   the correct ones *on trees*; joint frequencies count the class prior once
 //!   more per incident edge, which favours the dominant class (corridor).
 //!
-//! Why `Joint` is the default: measured on COLD (train Saarbrücken +
-//! Stockholm, 3 Freiburg maps, `tests/mrf_cold.rs`), MRF-2 with PMI is better
-//! at NL1–2 (≈ 0.98–1.0 vs 0.82–0.99) but on these loopy graphs the large
-//! self-affinity of rare classes (`ψ(LO, LO) ≈ 35`, `ψ(BA, BA) ≈ 34` vs
-//! `ψ(CR, CR) ≈ 2.7`) takes over from NL3 on and BP converges to one rare class
-//! everywhere (accuracy ≈ 0.1), while with `Joint` it converges to the corridor
-//! everywhere (≈ 0.58, the corridor share) — better on average over the six
-//! levels, and the failure mode the paper reports. Experiments should report
-//! both normalisations.
+//! - `Normalised`: `ψ = p(a, b) / √(p(a) p(b))` (MRF-3: the joint over the
+//!   square root of the product of its three marginals), halfway between the two.
+//! - `Conditional`: `ψ(a, b) = p(b | a)` with `a` the factor's first variable,
+//!   `ψ(a, p, b) = p(a, b | p)` given the pivot.
+//!
+//! Every potential is then raised to the *coupling* exponent
+//! ([`CooccurrenceParams::coupling`]): 1 keeps it, values below 1 weaken the
+//! dependencies (0 = independent places), above 1 strengthen them.
+//!
+//! Why `Joint` with coupling 1 is the default: it is the paper's baseline
+//! ("paper-style"). Measured on COLD it is a weak one: it counts the class prior
+//! again on every edge, so from NL3 on BP converges to the corridor everywhere;
+//! PMI with coupling 1 instead lets the large self-affinity of rare classes
+//! (`ψ(LO, LO) ≈ 35` vs `ψ(CR, CR) ≈ 2.7`) take over. The experiments choose
+//! normalisation and coupling by validation on the training buildings
+//! (`experiments::validate`); that tuned MRF is the baseline to beat.
 //!
 //! The default pseudo-count is 1 per cell (Laplace), which keeps every
 //! potential positive, so an unseen class pair is unlikely but never impossible.
@@ -56,33 +63,68 @@ use super::MrfError;
 use super::bp::{BpOptions, BpResult, loopy_bp};
 use super::factor_graph::FactorGraph;
 use crate::map::{ClassId, TopoMap};
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 /// How co-occurrence frequencies become potentials; see the module docs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Normalisation {
     /// Joint frequency divided by the product of its marginals (PMI-style ratio).
     Pmi,
-    /// Joint frequency.
+    /// Joint frequency (the paper-style baseline).
     #[default]
     Joint,
+    /// Joint frequency divided by the marginal of one variable: MRF-2
+    /// `p(b | a)` with `a` the factor's first variable (lower place index),
+    /// MRF-3 `p(a, b | p)` given the pivot.
+    Conditional,
+    /// Joint frequency divided by the square root of the product of its
+    /// marginals: `p(a, b) / √(p(a) p(b))` (MRF-3: `p(a, p, b) / √(p_A p_P p_B)`),
+    /// halfway between `Joint` and `Pmi`.
+    Normalised,
+}
+
+impl Normalisation {
+    /// Every normalisation, in a fixed order (for validation grids).
+    pub const ALL: [Normalisation; 4] = [
+        Normalisation::Joint,
+        Normalisation::Conditional,
+        Normalisation::Normalised,
+        Normalisation::Pmi,
+    ];
+
+    /// Short name (`joint`, `conditional`, `normalised`, `pmi`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Normalisation::Joint => "joint",
+            Normalisation::Conditional => "conditional",
+            Normalisation::Normalised => "normalised",
+            Normalisation::Pmi => "pmi",
+        }
+    }
 }
 
 /// Training options for [`Mrf2`] and [`Mrf3`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct CooccurrenceParams {
     /// Added to every cell of the count table (≥ 0, finite; > 0 keeps all potentials positive).
     pub pseudo_count: f64,
     /// Frequencies → potentials.
     pub normalisation: Normalisation,
+    /// Coupling strength: every potential is raised to this power (finite, ≥ 0;
+    /// 1 = the normalised frequencies as they are, 0 = independent places).
+    pub coupling: f64,
 }
 
 impl Default for CooccurrenceParams {
-    /// Pseudo-count 1, joint-frequency normalisation.
+    /// Pseudo-count 1, joint-frequency normalisation, coupling 1 (the paper-style MRF).
     fn default() -> Self {
         CooccurrenceParams {
             pseudo_count: 1.0,
             normalisation: Normalisation::Joint,
+            coupling: 1.0,
         }
     }
 }
@@ -203,6 +245,12 @@ fn check_params(p: &CooccurrenceParams) -> Result<(), MrfError> {
             p.pseudo_count
         )));
     }
+    if !(p.coupling.is_finite() && p.coupling >= 0.0) {
+        return Err(MrfError::BadOptions(format!(
+            "coupling must be finite and ≥ 0, got {}",
+            p.coupling
+        )));
+    }
     Ok(())
 }
 
@@ -275,34 +323,48 @@ fn potentials_from_counts(
     } else {
         vec![1.0 / counts.len() as f64; counts.len()]
     };
-    match p.normalisation {
-        Normalisation::Joint => joint,
-        Normalisation::Pmi => {
-            // Marginal of every axis.
-            let mut marg = vec![vec![0.0; c]; arity as usize];
-            for (idx, &q) in joint.iter().enumerate() {
-                let mut r = idx;
-                for k in (0..arity as usize).rev() {
-                    marg[k][r % c] += q;
-                    r /= c;
-                }
-            }
-            joint
-                .iter()
-                .enumerate()
-                .map(|(idx, &q)| {
-                    let mut r = idx;
-                    let mut denom = 1.0;
-                    for k in (0..arity as usize).rev() {
-                        denom *= marg[k][r % c];
-                        r /= c;
-                    }
-                    // A zero marginal means the whole slice is zero: potential 0.
-                    if denom > 0.0 { q / denom } else { 0.0 }
-                })
-                .collect()
+    // Marginal of every axis.
+    let arity = arity as usize;
+    let mut marg = vec![vec![0.0; c]; arity];
+    for (idx, &q) in joint.iter().enumerate() {
+        let mut r = idx;
+        for k in (0..arity).rev() {
+            marg[k][r % c] += q;
+            r /= c;
         }
     }
+    // Which axes divide the joint, and with which power.
+    let (axes, power): (Vec<usize>, f64) = match p.normalisation {
+        Normalisation::Joint => (Vec::new(), 1.0),
+        Normalisation::Pmi => ((0..arity).collect(), 1.0),
+        Normalisation::Normalised => ((0..arity).collect(), 0.5),
+        // MRF-2: the first variable; MRF-3: the pivot (the middle axis).
+        Normalisation::Conditional => (vec![if arity == 3 { 1 } else { 0 }], 1.0),
+    };
+    joint
+        .iter()
+        .enumerate()
+        .map(|(idx, &q)| {
+            let mut digits = [0usize; 8];
+            let mut r = idx;
+            for k in (0..arity).rev() {
+                digits[k] = r % c;
+                r /= c;
+            }
+            let denom: f64 = axes.iter().map(|&k| marg[k][digits[k]]).product();
+            // A zero marginal means the whole slice is zero: potential 0.
+            let v = if denom > 0.0 {
+                q / denom.powf(power)
+            } else {
+                0.0
+            };
+            if p.coupling == 1.0 {
+                v
+            } else {
+                v.powf(p.coupling)
+            }
+        })
+        .collect()
 }
 
 /// MRF with a co-occurrence potential on every clique of `K` places (see the module
