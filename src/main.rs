@@ -40,6 +40,9 @@ enum Command {
     /// Choose every model's settings (GraphSPN, tuned MRF-2/MRF-3) by
     /// leave-one-training-building-out validation; writes VALIDATION.md and validation.json.
     Validate(cli::reproduce::ValidateArgs),
+    /// Run the paper's protocol (classification, placeholders, novelty) on your own
+    /// maps against the validated baselines; writes REPORT.md, results.json, figures.
+    Evaluate(cli::evaluate::EvaluateArgs),
     /// Compile the GraphSPN of a known map into a no_std Rust source file.
     Compile(cli::compile::CompileArgs),
     /// Decompose a map into the model's templates and write the decompositions file
@@ -58,6 +61,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Instance(args) => cli::instance::run(args),
         Command::Reproduce(args) => cli::reproduce::run_cmd(args),
         Command::Validate(args) => cli::reproduce::validate_cmd(args),
+        Command::Evaluate(args) => cli::evaluate::run_cmd(args),
         Command::Compile(args) => cli::compile::run(args),
         Command::Decompose(args) => cli::decompose::run(args),
         Command::Generate(args) => cli::maps::generate_cmd(args),

@@ -171,3 +171,84 @@ fn validate_then_reproduce_with_the_saved_settings() {
         assert!(report.contains(want), "REPORT.md lacks {want:?}");
     }
 }
+
+#[test]
+fn evaluate_runs_the_protocol_on_a_building_the_data_folder_does_not_hold() {
+    // A user's building: two synthetic floors from our generator and a COLD sequence
+    // copied under another name, in a folder outside the data folder.
+    let dir = tempfile::tempdir().unwrap();
+    let building = dir.path().join("my_office");
+    std::fs::create_dir(&building).unwrap();
+    for seed in ["1", "2"] {
+        run_ok(
+            bin()
+                .args(["generate", "--places", "90", "--seed", seed, "--out"])
+                .arg(building.join(format!("floor_{seed}.json"))),
+        );
+    }
+    let cold =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/cold-topomaps/Freiburg/seq1_cloudy1");
+    let copy = building.join("annex_level_2");
+    std::fs::create_dir(&copy).unwrap();
+    for f in ["nodes.dat", "rooms.dat"] {
+        std::fs::copy(cold.join(f), copy.join(f)).unwrap();
+    }
+    let out = dir.path().join("eval");
+    let stderr = bin()
+        .args(["evaluate", "--maps"])
+        .arg(&building)
+        .args(["--tiny-grid", "--levels", "2", "--rounds", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        stderr.status.success(),
+        "{}",
+        String::from_utf8_lossy(&stderr.stderr)
+    );
+    let report = std::fs::read_to_string(out.join("REPORT.md")).unwrap();
+    for want in [
+        "| my_office | Freiburg, Saarbrucken, Stockholm |",
+        "| my_office | GraphSPN |",
+        "| my_office | MRF-2 |",
+        "Paired difference",
+        "pooled AUC, local set",
+    ] {
+        assert!(report.contains(want), "REPORT.md lacks {want:?}:\n{report}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let maps: std::collections::BTreeSet<&str> = json["graphs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|g| {
+            assert_eq!(g["building"], "my_office");
+            g["map"].as_str().unwrap()
+        })
+        .collect();
+    assert_eq!(maps.len(), 3, "every map of the folder is tested: {maps:?}");
+    assert!(maps.contains("my_office/annex_level_2"), "{maps:?}");
+    // One validation on the three COLD buildings (three folds), none on the test maps.
+    let folds = json["validation"][0]["folds"].as_array().unwrap();
+    assert_eq!(folds.len(), 3);
+    assert!(!json["validation"].to_string().contains("my_office/"));
+
+    // Bad input: one training building is not enough for the validation.
+    let bad = bin()
+        .args(["evaluate", "--maps"])
+        .arg(&building)
+        .arg("--train")
+        .arg(&building)
+        .arg("--out")
+        .arg(dir.path().join("bad"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let msg = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        msg.contains("--train") && msg.contains("at least two"),
+        "{msg}"
+    );
+    assert!(!dir.path().join("bad").exists());
+}

@@ -120,6 +120,7 @@ fn random_case(seed: u64, vectors: usize) -> Case {
             count,
             candidates: 3 * count,
             seed,
+            ..DecompositionParams::default()
         },
     )
     .unwrap();

@@ -126,6 +126,7 @@ fn main() {
                 count: 5,
                 candidates: 15,
                 seed: 1,
+                ..DecompositionParams::default()
             },
         )
         .expect("decompose");

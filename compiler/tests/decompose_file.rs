@@ -24,6 +24,7 @@ fn setup(
             count: 3,
             candidates: 6,
             seed,
+            ..DecompositionParams::default()
         },
     )
     .unwrap();

@@ -190,7 +190,7 @@ proptest! {
     ) {
         let map = random_connected_map(n, max_degree, n * extra_per_node, seed);
         let templates = Template::paper_set();
-        let params = DecompositionParams { count, candidates: count + more, seed };
+        let params = DecompositionParams { count, candidates: count + more, seed, ..DecompositionParams::default() };
         let ds = decompose_best(&map, &templates, &params).unwrap();
         prop_assert_eq!(ds.len(), count);
         for (i, d) in ds.iter().enumerate() {
@@ -305,6 +305,7 @@ fn bad_inputs_are_errors() {
             count,
             candidates,
             seed: 0,
+            ..DecompositionParams::default()
         };
         assert!(matches!(
             decompose_best(&map, &ts, &p),

@@ -35,6 +35,9 @@ fn quick_reproduction_on_cold() {
     for b in rep.buildings.iter_mut().chain(rep1.buildings.iter_mut()) {
         b.train_seconds = 0.0;
     }
+    for v in rep.validation.iter_mut().chain(rep1.validation.iter_mut()) {
+        v.seconds.clear();
+    }
     assert_eq!(
         serde_json::to_string(&rep).unwrap(),
         serde_json::to_string(&rep1).unwrap(),
@@ -84,6 +87,101 @@ fn quick_reproduction_on_cold() {
             g.map
         );
     }
-    let auc = parsed.auc.expect("novelty ran");
-    assert!(auc.iter().all(|a| (0.0..=1.0).contains(a)));
+    assert_eq!(parsed.auc.len(), 2, "both novelty sets scored");
+    for (_, auc) in &parsed.auc {
+        assert!(auc.iter().all(|a| (0.0..=1.0).contains(a)));
+    }
+}
+
+#[test]
+fn novelty_labellings_swap_whole_maps_and_connected_quarter_regions() {
+    use graphspn_compiler::experiments::reproduce::{
+        LOCAL_REGION_SHARE, LOCAL_REGIONS, NoveltySet, novelty_labellings,
+    };
+    use graphspn_compiler::template::Adjacency;
+    let all = load_data(&data()).unwrap();
+    let map = &all["Stockholm"][0];
+    let truth: Vec<_> = map.places().map(|p| p.class.unwrap()).collect();
+    let ls = novelty_labellings(map, &truth, 3);
+    assert_eq!(ls, novelty_labellings(map, &truth, 3), "seeded");
+    assert_eq!(ls[0].name, "original");
+    assert_eq!(ls[0].labels, truth);
+    let (cr, dw) = (
+        map.classes.index_of("CR").unwrap(),
+        map.classes.index_of("DW").unwrap(),
+    );
+    let whole = ls.iter().find(|l| l.name == "CR<->DW").unwrap();
+    assert!(whole.novel && whole.set == NoveltySet::Paper);
+    for (i, (&t, &l)) in truth.iter().zip(&whole.labels).enumerate() {
+        let want = if t == cr {
+            dw
+        } else if t == dw {
+            cr
+        } else {
+            t
+        };
+        assert_eq!(l, want, "place index {i}");
+    }
+    let adj = Adjacency::new(map);
+    let local: Vec<_> = ls.iter().filter(|l| l.set == NoveltySet::Local).collect();
+    assert_eq!(local.len(), 3 * LOCAL_REGIONS);
+    let quarter = (LOCAL_REGION_SHARE * truth.len() as f64).ceil() as usize;
+    for l in local {
+        // Changed places: some, all swapped classes of one pair, within a connected
+        // region of a quarter of the map (so fewer than the whole-map swap changes).
+        let changed: Vec<usize> = (0..truth.len())
+            .filter(|&i| l.labels[i] != truth[i])
+            .collect();
+        assert!(
+            !changed.is_empty() && changed.len() <= quarter,
+            "{}",
+            l.name
+        );
+        let base = l.name.split(" local").next().unwrap();
+        let full = ls.iter().find(|x| x.name == base).unwrap();
+        assert_eq!(l.novel, full.novel);
+        for &i in &changed {
+            assert_eq!(l.labels[i], full.labels[i], "{} place {i}", l.name);
+        }
+        // The region grows breadth-first from one place, so (loosely) every changed
+        // place is within `quarter` hops of the first one.
+        let mut dist = vec![usize::MAX; truth.len()];
+        let mut queue = std::collections::VecDeque::from([changed[0]]);
+        dist[changed[0]] = 0;
+        while let Some(u) = queue.pop_front() {
+            for &v in adj.neighbors(u) {
+                if dist[v] == usize::MAX {
+                    dist[v] = dist[u] + 1;
+                    queue.push_back(v);
+                }
+            }
+        }
+        assert!(changed.iter().all(|&i| dist[i] <= quarter), "{}", l.name);
+    }
+}
+
+#[test]
+fn class_prior_and_prior_corrected_rows() {
+    use graphspn_compiler::experiments::reproduce::{class_prior, graphspn_rows};
+    let all = load_data(&data()).unwrap();
+    // Freiburg has no LAB and no MR: smoothing keeps them at 1% (α = 0.1, 10 classes).
+    let p = class_prior(&all["Freiburg"], 10);
+    assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    let lab = all["Freiburg"][0].classes.index_of("LAB").unwrap() as usize;
+    assert!((p[lab] - 0.01 / 1.1).abs() < 1e-12, "{}", p[lab]);
+    let cr = all["Freiburg"][0].classes.index_of("CR").unwrap() as usize;
+    assert!(p[cr] > 0.3);
+    // β = 0 and exponent 1: the rows as given; a uniform row becomes prior^-β, normalised.
+    let rows = vec![vec![0.1; 10], (1..=10).map(|k| k as f64 / 55.0).collect()];
+    assert_eq!(graphspn_rows(&rows, 1.0, &p, 0.0), rows);
+    let r = graphspn_rows(&rows, 2.0, &p, 0.5);
+    let z: f64 = p.iter().map(|x| x.powf(-0.5)).sum();
+    for k in 0..10 {
+        assert!((r[0][k] - p[k].powf(-0.5) / z).abs() < 1e-12);
+    }
+    assert!((r[1].iter().sum::<f64>() - 1.0).abs() < 1e-12);
+    assert!(
+        r[0][lab] > r[0][cr],
+        "a rare class gains against a common one"
+    );
 }

@@ -48,6 +48,7 @@ fn case(seed: u64, selective: bool) -> Case {
         decompositions: 3,
         candidates: 6,
         seed,
+        ..InstanceParams::default()
     };
     let inst = Instance::for_map(&model, &map, &params).unwrap();
     assert_eq!(inst.decompositions.len(), 3);

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 use graphspn_compiler::decompose::synthetic::random_connected_map;
 use graphspn_compiler::instance::{
-    ComponentInstance, Instance, InstanceModel, InstanceParams, InstanceQueryError,
+    ComponentInstance, Instance, InstanceModel, InstanceParams, InstanceQueryError, Mixing,
 };
 use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::learn::Model;
@@ -141,6 +141,7 @@ fn matches_the_explicit_instance_on_random_models() {
             decompositions: 1 + seed as usize % 4,
             candidates: 12,
             seed,
+            ..InstanceParams::default()
         };
         let (mut fast, mut slow) = both(&model, &map, &params);
         let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
@@ -190,6 +191,7 @@ fn matches_the_explicit_instance_on_cold_maps() {
             decompositions: 3,
             candidates: 9,
             seed: i as u64,
+            ..InstanceParams::default()
         };
         let (mut fast, mut slow) = both(&model, map, &params);
         let mut rng = ChaCha8Rng::seed_from_u64(i as u64);
@@ -221,6 +223,7 @@ fn cached_answers_after_updates_equal_a_fresh_evaluation() {
             decompositions: 4,
             candidates: 12,
             seed,
+            ..InstanceParams::default()
         };
         let (mut fast, mut slow) = both(&model, &map, &params);
         let n = map.num_places();
@@ -414,4 +417,47 @@ fn growth_follows_the_explicit_instance_and_keeps_caches() {
             assert_eq!(fast.marginals().unwrap(), f.marginals().unwrap());
         }
     }
+}
+
+#[test]
+fn average_mixing_is_the_mean_of_the_decompositions_marginals() {
+    let model = demo_model();
+    let dirs = cold::sequence_dirs(cold_dir().join("Saarbrucken")).unwrap();
+    let map = cold::load_sequence(&dirs[0]).unwrap();
+    let params = InstanceParams {
+        decompositions: 4,
+        candidates: 12,
+        seed: 5,
+        strategy: graphspn_compiler::decompose::DecompositionStrategy::Cover,
+    };
+    let mut all = ComponentInstance::for_map(&model, &map, &params).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let rows = hard_rows(map.num_places(), model.classes.len(), &mut rng);
+    all.set_all_evidence(&rows).unwrap();
+    let posterior = all.marginals_mixed(Mixing::Posterior).unwrap();
+    assert_eq!(posterior.probs, all.marginals().unwrap().probs);
+    let average = all.marginals_mixed(Mixing::Average).unwrap();
+    assert_eq!(average.log_likelihood, posterior.log_likelihood);
+    // Each decomposition alone, then the plain mean.
+    let singles: Vec<Vec<Vec<f64>>> = all
+        .decompositions()
+        .iter()
+        .map(|d| {
+            let mut one = ComponentInstance::build(&model, &map, vec![d.clone()]).unwrap();
+            one.set_all_evidence(&rows).unwrap();
+            one.marginals().unwrap().probs
+        })
+        .collect();
+    let mut differs = false;
+    for p in 0..map.num_places() {
+        for c in 0..model.classes.len() {
+            let mean = singles.iter().map(|s| s[p][c]).sum::<f64>() / singles.len() as f64;
+            assert_close(average.probs[p][c], mean, &format!("place {p} class {c}"));
+            differs |= (posterior.probs[p][c] - mean).abs() > 1e-3;
+        }
+    }
+    assert!(
+        differs,
+        "the posterior weights should not all be equal here"
+    );
 }

@@ -153,3 +153,53 @@ fn errors_name_file_line_and_column() {
     let err = m.to_json().unwrap_err().to_string();
     assert!(err.contains("pair") && err.contains("node"), "{err}");
 }
+
+#[test]
+fn temperature_tempers_full_tables_exactly_and_one_changes_nothing() {
+    use graphspn_compiler::learn::{BadTemperature, temper_spn};
+    use graphspn_compiler::spn::Spn;
+    let model = small_model();
+    // τ = 1: bit for bit the same model (and the same settings record).
+    assert_eq!(model.tempered(1.0).unwrap().spns, model.spns);
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let mut spn = model.spns[0].clone();
+        assert!(matches!(temper_spn(&mut spn, bad), Err(BadTemperature(_))));
+        assert!(model.tempered(bad).is_err());
+    }
+    // A full table (one sum over one product per joint class assignment) tempered by τ
+    // is exactly p^τ / Z.
+    let table: Spn = dense_structure(2, 10, &DenseParams::default(), 2).unwrap();
+    let mut weighted = table.clone();
+    let mut k = 0.0;
+    for node in &mut weighted.nodes {
+        if let Node::Sum { weights, .. } = node {
+            for w in weights.iter_mut() {
+                k += 1.0;
+                *w = k;
+            }
+            let z: f64 = weights.iter().sum();
+            weights.iter_mut().for_each(|w| *w /= z);
+        }
+    }
+    let mut tempered = weighted.clone();
+    temper_spn(&mut tempered, 0.5).unwrap();
+    let mut ev = graphspn_compiler::interpreter::Evaluator::new(&weighted).unwrap();
+    let mut et = graphspn_compiler::interpreter::Evaluator::new(&tempered).unwrap();
+    let ones = graphspn_compiler::interpreter::Evidence::from_rows(vec![vec![1.0; 10]; 2]);
+    let mut p = Vec::new();
+    let mut q = Vec::new();
+    for a in 0..10u32 {
+        for b in 0..10u32 {
+            let fixed = [Some(a), Some(b)];
+            p.push(ev.log_likelihood(&fixed, &ones).unwrap().exp());
+            q.push(et.log_likelihood(&fixed, &ones).unwrap().exp());
+        }
+    }
+    let z: f64 = p.iter().map(|x| x.sqrt()).sum();
+    for (x, y) in p.iter().zip(&q) {
+        assert!((x.sqrt() / z - y).abs() < 1e-12, "{x} {y}");
+    }
+    // The settings record the temperature; training with it gives the same model.
+    let t = model.tempered(0.8).unwrap();
+    assert_eq!(t.settings["temperature"], serde_json::json!(0.8));
+}

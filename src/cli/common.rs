@@ -171,6 +171,7 @@ pub fn decompositions_for(
                 count,
                 candidates: (3 * count).max(15),
                 seed,
+                ..graphspn_compiler::decompose::DecompositionParams::default()
             };
             Ok(
                 graphspn_compiler::decompose::decompose_best(map, &model.templates, &dp)

@@ -32,6 +32,7 @@ pub fn section(seed: u64, rounds: usize) -> Result<String> {
             count: 5,
             candidates: 15,
             seed: 0,
+            ..DecompositionParams::default()
         },
     )?;
     let instance = Instance::build(&model, &map, decs)?;

@@ -3,6 +3,7 @@
 pub mod common;
 pub mod compile;
 pub mod decompose;
+pub mod evaluate;
 pub mod generated_check;
 pub mod infer;
 pub mod instance;

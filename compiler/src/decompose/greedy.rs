@@ -3,21 +3,60 @@
 use crate::par::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
 
 use super::{Component, DecomposeError, Decomposition};
 use crate::map::TopoMap;
 use crate::template::{Adjacency, Matcher, Template};
 
+/// How [`decompose_best`] draws and ranks its candidate decompositions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DecompositionStrategy {
+    /// The authors' scheme (Alg. 2): random matches; candidates are partitions by
+    /// the largest template ranked by its coverage, the best completed with the
+    /// smaller templates.
+    #[default]
+    Paper,
+    /// Covering: a star-shaped template takes the free neighbours of its pivot
+    /// that have the fewest other free neighbours first (so a frontier place
+    /// joins its only neighbour's component rather than becoming a singleton);
+    /// candidates are complete decompositions ranked by fewest singletons, then
+    /// by coverage of the largest template.
+    Cover,
+}
+
+impl DecompositionStrategy {
+    /// Both strategies, in a fixed order.
+    pub const ALL: [DecompositionStrategy; 2] =
+        [DecompositionStrategy::Paper, DecompositionStrategy::Cover];
+
+    /// Short name (`paper`, `cover`), as in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            DecompositionStrategy::Paper => "paper",
+            DecompositionStrategy::Cover => "cover",
+        }
+    }
+
+    /// The strategy called `name` (see [`DecompositionStrategy::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|s| s.name() == name)
+    }
+}
+
 /// Settings of [`decompose_best`]. Defaults are the authors': 15 candidates,
-/// best 5 kept.
+/// best 5 kept, [`DecompositionStrategy::Paper`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DecompositionParams {
     /// Number of decompositions returned (K).
     pub count: usize,
-    /// Number of random partitions by the largest template scored (N ≥ K).
+    /// Number of random candidates scored (N ≥ K).
     pub candidates: usize,
     /// Seed of every random choice.
     pub seed: u64,
+    /// How candidates are drawn and ranked.
+    pub strategy: DecompositionStrategy,
 }
 
 impl Default for DecompositionParams {
@@ -26,6 +65,7 @@ impl Default for DecompositionParams {
             count: 5,
             candidates: 15,
             seed: 0,
+            strategy: DecompositionStrategy::Paper,
         }
     }
 }
@@ -88,12 +128,15 @@ fn prepare(map: &TopoMap, templates: &[Template]) -> Result<Prepared, DecomposeE
 ///   (visited ones are used or unmatchable). So the next place where a match is
 ///   taken is the first matchable one in a uniform random order, i.e. uniform
 ///   among the currently matchable places — the paper's choice.
+///
+/// With `cover`, matches are taken with [`Matcher::find_covering_at`].
 fn greedy_stage<R: Rng + ?Sized>(
     prep: &Prepared,
     t: usize,
     used: &mut [bool],
     rng: &mut R,
     components: &mut Vec<Component>,
+    cover: bool,
 ) {
     let matcher = &prep.matchers[t];
     // Used places never admit a match, so only the unused ones are visited.
@@ -105,7 +148,13 @@ fn greedy_stage<R: Rng + ?Sized>(
     }
     let mut buf = Vec::with_capacity(matcher.num_nodes());
     for root in perm {
-        if !used[root] && matcher.find_at(&prep.adj, root, used, rng, &mut buf) {
+        let found = !used[root]
+            && if cover {
+                matcher.find_covering_at(&prep.adj, root, used, rng, &mut buf)
+            } else {
+                matcher.find_at(&prep.adj, root, used, rng, &mut buf)
+            };
+        if found {
             for &p in &buf {
                 used[p] = true;
             }
@@ -131,15 +180,19 @@ pub fn decompose<R: Rng + ?Sized>(
     let mut used = vec![false; map.num_places()];
     let mut components = Vec::new();
     for &t in &prep.order {
-        greedy_stage(&prep, t, &mut used, rng, &mut components);
+        greedy_stage(&prep, t, &mut used, rng, &mut components, false);
     }
     Ok(Decomposition { components })
 }
 
-/// The authors' scheme (as in their published code): `params.candidates` random
-/// greedy partitions by the largest template, scored by its coverage (number of
-/// places inside it); the `params.count` best kept (ties: lower candidate
-/// number first), each completed with the smaller templates. Best first.
+/// The best `params.count` of `params.candidates` random decompositions, best
+/// first. With [`DecompositionStrategy::Paper`] (the authors' scheme, as in their
+/// published code) each candidate is a random greedy partition by the largest
+/// template, scored by its coverage (number of places inside it); the best are
+/// completed with the smaller templates. With [`DecompositionStrategy::Cover`]
+/// each candidate is a complete covering decomposition, ranked by fewest
+/// singleton components, then by the largest template's coverage. Ties: lower
+/// candidate number first.
 ///
 /// Candidate `c` draws from `ChaCha8Rng::seed_from_u64(params.seed)` on stream
 /// `c`, so results do not depend on thread scheduling.
@@ -160,6 +213,9 @@ pub fn decompose_best(
     let prep = prepare(map, templates)?;
     let n = map.num_places();
     let first = prep.order[0];
+    let cover = params.strategy == DecompositionStrategy::Cover;
+    // Candidates: the stages run now (all of them when covering, else the first).
+    let stages = if cover { prep.order.len() } else { 1 };
     let mut cands: Vec<(usize, ChaCha8Rng, Vec<bool>, Vec<Component>)> = (0..params.candidates)
         .into_par_iter()
         .map(|c| {
@@ -167,19 +223,34 @@ pub fn decompose_best(
             rng.set_stream(c as u64);
             let mut used = vec![false; n];
             let mut comps = Vec::new();
-            greedy_stage(&prep, first, &mut used, &mut rng, &mut comps);
+            for &t in &prep.order[..stages] {
+                greedy_stage(&prep, t, &mut used, &mut rng, &mut comps, cover);
+            }
             (c, rng, used, comps)
         })
         .collect();
     // Coverage = number of places in components of the largest template.
-    let coverage = |comps: &[Component]| comps.iter().map(|c| c.places.len()).sum::<usize>();
-    cands.sort_by_key(|(c, _, _, comps)| (std::cmp::Reverse(coverage(comps)), *c));
+    let coverage = |comps: &[Component]| {
+        comps
+            .iter()
+            .filter(|c| c.template == first)
+            .map(|c| c.places.len())
+            .sum::<usize>()
+    };
+    let singletons = |comps: &[Component]| comps.iter().filter(|c| c.places.len() == 1).count();
+    cands.sort_by_key(|(c, _, _, comps)| {
+        (
+            if cover { singletons(comps) } else { 0 },
+            std::cmp::Reverse(coverage(comps)),
+            *c,
+        )
+    });
     cands.truncate(params.count);
     let out = cands
         .into_par_iter()
         .map(|(_, mut rng, mut used, mut comps)| {
-            for &t in &prep.order[1..] {
-                greedy_stage(&prep, t, &mut used, &mut rng, &mut comps);
+            for &t in &prep.order[stages..] {
+                greedy_stage(&prep, t, &mut used, &mut rng, &mut comps, cover);
             }
             Decomposition { components: comps }
         })

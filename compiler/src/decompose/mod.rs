@@ -18,7 +18,9 @@ pub mod file;
 mod greedy;
 pub mod synthetic;
 
-pub use greedy::{DecompositionParams, decompose, decompose_best, template_shares};
+pub use greedy::{
+    DecompositionParams, DecompositionStrategy, decompose, decompose_best, template_shares,
+};
 
 /// One component of a decomposition: a copy of a template placed on the map.
 #[derive(Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]

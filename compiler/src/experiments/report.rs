@@ -6,8 +6,9 @@ use std::path::Path;
 use super::evidence::derive_seed;
 use super::evidence::{NoiseLevel, PAPER_TABLE1};
 use super::reproduce::{
-    BuildingSetup, Experiment, GraphResult, MODELS, NUM_MODELS, ReproduceConfig, ReproduceError,
-    Reproduction, roc_curve, run_graph,
+    BuildingSetup, Experiment, FIRST_PAPER_MODEL, GraphResult, MODELS, MRF_MODELS, NUM_MODELS,
+    NoveltySet, ReproduceConfig, ReproduceError, Reproduction, novelty_points, roc_curve,
+    run_graph,
 };
 use crate::map::TopoMap;
 use crate::render::{RenderOptions, escape_xml, render_svg};
@@ -196,7 +197,7 @@ fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool) -> String
                     let paper_name = match name {
                         "MRF-2 paper" => "MRF-2",
                         "MRF-3 paper" => "MRF-3",
-                        "GraphSPN" => "GraphSPN",
+                        "GraphSPN paper" => "GraphSPN",
                         _ => "",
                     };
                     let p = b.and_then(|b| paper_table2(paper_name, l, b));
@@ -239,10 +240,12 @@ fn paired_table(rep: &Reproduction, e: Experiment) -> String {
 
 fn bp_convergence(rep: &Reproduction) -> String {
     let n = rep.graphs.len().max(1) as f64;
-    let parts: Vec<String> = (0..NUM_MODELS - 1)
-        .map(|k| {
-            let c = rep.graphs.iter().filter(|g| g.bp_converged[k]).count() as f64;
-            format!("{:.1}% ({})", 100.0 * c / n, MODELS[k + 1])
+    let parts: Vec<String> = MRF_MODELS
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| {
+            let c = rep.graphs.iter().filter(|g| g.bp_converged[i]).count() as f64;
+            format!("{:.1}% ({})", 100.0 * c / n, MODELS[k])
         })
         .collect();
     format!(
@@ -272,7 +275,71 @@ pub fn validation_markdown(vals: &[super::validate::Validation], seconds: f64) -
             st.mrf3.label()
         );
     }
+    let _ = writeln!(
+        s,
+        "\nWhat each option gives (validation score, %, averaged over the test buildings' \
+         validations): the best setting having that value, and the mean of all settings \
+         having it.\n"
+    );
+    s.push_str(&option_summary(vals));
     s.push_str(&validation_tables(vals, usize::MAX));
+    s
+}
+
+/// Per validation: best score, sum of scores and number of settings with one option value.
+type OptionCell = (f64, f64, usize);
+
+/// What each option value gives in validation: per model, option and value, the
+/// best candidate score among the settings with that value and the mean of all of
+/// them, each averaged over the test buildings' validations (in %).
+pub fn option_summary(vals: &[super::validate::Validation]) -> String {
+    use std::collections::BTreeMap;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| Model | Option | Value | best setting with it | mean of all settings with it |\n|---|---|---|---|---|"
+    );
+    for model in ["GraphSPN", "MRF-2", "MRF-3"] {
+        // option -> value -> per validation (best, sum, count)
+        let mut order: Vec<String> = Vec::new();
+        let mut table: BTreeMap<(String, String), Vec<OptionCell>> = BTreeMap::new();
+        let mut value_order: Vec<(String, String)> = Vec::new();
+        for (vi, v) in vals.iter().enumerate() {
+            for c in v.candidates.iter().filter(|c| c.model == model) {
+                for (o, x) in &c.options {
+                    if !order.contains(o) {
+                        order.push(o.clone());
+                    }
+                    let key = (o.clone(), x.clone());
+                    if !value_order.contains(&key) {
+                        value_order.push(key.clone());
+                    }
+                    let e = table.entry(key).or_default();
+                    e.resize(vals.len(), (f64::NEG_INFINITY, 0.0, 0));
+                    let cell = &mut e[vi];
+                    cell.0 = cell.0.max(c.score);
+                    cell.1 += c.score;
+                    cell.2 += 1;
+                }
+            }
+        }
+        for o in &order {
+            for key in value_order.iter().filter(|k| &k.0 == o) {
+                let cells: Vec<&(f64, f64, usize)> =
+                    table[key].iter().filter(|c| c.2 > 0).collect();
+                let n = cells.len().max(1) as f64;
+                let best = cells.iter().map(|c| c.0).sum::<f64>() / n;
+                let mean = cells.iter().map(|c| c.1 / c.2 as f64).sum::<f64>() / n;
+                let _ = writeln!(
+                    s,
+                    "| {model} | {o} | {} | {:.1} | {:.1} |",
+                    key.1,
+                    100.0 * best,
+                    100.0 * mean
+                );
+            }
+        }
+    }
     s
 }
 
@@ -370,9 +437,13 @@ pub fn write_outputs(
         write(&name, &accuracy_plot(rep, &b.building))?;
         figures.push(name);
     }
-    if rep.auc.is_some() {
-        write("roc.svg", &roc_plot(rep))?;
-        figures.push("roc.svg".into());
+    for (set, _) in &rep.auc {
+        let name = match set {
+            NoveltySet::Paper => "roc.svg",
+            NoveltySet::Local => "roc_local.svg",
+        };
+        write(name, &roc_plot(rep, *set))?;
+        figures.push(name.into());
     }
     // Fig. 8- and Fig. 6-style panels for the first test map of each building.
     let fig_level = *cfg
@@ -417,14 +488,15 @@ fn report_markdown(
     let _ = writeln!(
         s,
         "Seed {}; {} test building(s); {} maps × {} rounds per building and level; \
-         instance GraphSPN from the best {} of {} decompositions; evidence noise: {}. \
-         Run time {:.1} s.\n",
+         evidence noise: {}. Run time {:.1} s.\n",
         rep.seed,
         rep.buildings.len(),
-        cfg.maps_per_building,
+        if cfg.maps_per_building == usize::MAX {
+            "all".to_string()
+        } else {
+            cfg.maps_per_building.to_string()
+        },
         cfg.rounds,
-        rep.decompositions.0,
-        rep.decompositions.1,
         if rep.paper_noise {
             "**paper-effective** (wrong class drawn among all 10 classes, `--paper-noise`)"
         } else {
@@ -434,13 +506,13 @@ fn report_markdown(
     );
     let _ = writeln!(
         s,
-        "Base training settings: `{}`.\n\n\
-         ## Models and their settings\n\n\
+        "## Models and their settings\n\n\
          Every setting below was chosen by leave-one-training-building-out validation \
          on the test building's two training buildings only (`graphspn validate`). \
-         \"MRF-2 paper\" and \"MRF-3 paper\" are the paper-style baselines: raw joint \
-         co-occurrence frequencies and the raw evidence.\n",
-        rep.training
+         The paper-style models are \"GraphSPN paper\" (`{}`: the paper's best 5 of 15 \
+         decompositions, raw evidence, no temperature, the exact mixture's marginals) and \
+         \"MRF-2 paper\" / \"MRF-3 paper\" (raw joint co-occurrence frequencies, raw evidence).\n",
+        cfg.graphspn_paper.label()
     );
     s.push_str(&settings_section(rep));
     s.push('\n');
@@ -486,17 +558,39 @@ fn report_markdown(
     s.push_str(&accuracy_table(rep, Experiment::Placeholders, true));
     let _ = writeln!(s, "\nPaired difference GraphSPN − the better tuned MRF:\n");
     s.push_str(&paired_table(rep, Experiment::Placeholders));
-    if let Some(a) = rep.auc {
+    if !rep.auc.is_empty() {
+        let count = |set: NoveltySet, novel: bool| {
+            rep.novelty
+                .iter()
+                .filter(|n| n.set == set && n.novel == novel)
+                .count()
+        };
         let _ = writeln!(
             s,
             "\n## Novelty detection (paper Fig. 7)\n\n\
-             Per-variable log-likelihood of the labelled test maps (no evidence): \
-             {} labellings, of which {} novel (CR↔DW, CR↔1PO swaps) and {} not \
-             (originals, 1PO↔2PO swaps). A low score flags novelty. The paper reports \
-             ROC curves only (all three models good, MRFs slightly better than GraphSPN).\n",
-            rep.novelty.len(),
-            rep.novelty.iter().filter(|n| n.novel).count(),
-            rep.novelty.iter().filter(|n| !n.novel).count()
+             Per-variable log-likelihood of the labelled test maps (no evidence); a low \
+             score flags novelty. Two sets of labellings, each scored with the original \
+             labellings ({} maps):\n\n\
+             - the paper's: {} novel (CR↔DW and CR↔1PO over the whole map) and {} not \
+             (1PO↔2PO), plus the originals;\n\
+             - local (harder): the same swaps inside one connected region of a quarter of \
+             the places, {} regions per swap and map: {} novel and {} not, plus the originals.\n\n\
+             The paper reports ROC curves only (all three models good, MRFs slightly better \
+             than GraphSPN).\n",
+            rep.novelty
+                .iter()
+                .filter(|n| n.variant == "original")
+                .count(),
+            count(NoveltySet::Paper, true),
+            count(NoveltySet::Paper, false)
+                - rep
+                    .novelty
+                    .iter()
+                    .filter(|n| n.variant == "original")
+                    .count(),
+            super::reproduce::LOCAL_REGIONS,
+            count(NoveltySet::Local, true),
+            count(NoveltySet::Local, false),
         );
         let _ = writeln!(
             s,
@@ -504,15 +598,42 @@ fn report_markdown(
              comparable the scores are across maps); within-map AUC ranks each map's own \
              labellings only, averaged over maps. MRF scores use the Bethe approximation of log Z.\n"
         );
-        let _ = writeln!(s, "| Model | pooled AUC | within-map AUC |\n|---|---|---|");
+        let _ = writeln!(
+            s,
+            "| Model | pooled AUC, paper set | within-map, paper set | pooled AUC, local set | within-map, local set |\n|---|---|---|---|---|"
+        );
+        let get = |v: &[(NoveltySet, [f64; NUM_MODELS])], set: NoveltySet, k: usize| {
+            v.iter()
+                .find(|(s, _)| *s == set)
+                .map(|(_, a)| a[k])
+                .unwrap_or(f64::NAN)
+        };
         for (k, m) in MODELS.iter().enumerate() {
-            let w = rep.within_map.map(|w| w[k]).unwrap_or(f64::NAN);
-            let _ = writeln!(s, "| {m} | {:.3} | {w:.3} |", a[k]);
+            let _ = writeln!(
+                s,
+                "| {m} | {:.3} | {:.3} | {:.3} | {:.3} |",
+                get(&rep.auc, NoveltySet::Paper, k),
+                get(&rep.within_map, NoveltySet::Paper, k),
+                get(&rep.auc, NoveltySet::Local, k),
+                get(&rep.within_map, NoveltySet::Local, k),
+            );
         }
-        let mut variants: Vec<&str> = Vec::new();
+        let mut variants: Vec<String> = Vec::new();
         for n in &rep.novelty {
-            if !variants.contains(&n.variant.as_str()) {
-                variants.push(&n.variant);
+            // Local variants pooled over their regions.
+            let v = n
+                .variant
+                .split(" local")
+                .next()
+                .unwrap_or(&n.variant)
+                .to_string()
+                + if n.set == NoveltySet::Local {
+                    " (local)"
+                } else {
+                    ""
+                };
+            if !variants.contains(&v) {
+                variants.push(v);
             }
         }
         let _ = writeln!(
@@ -527,7 +648,16 @@ fn report_markdown(
                 let vals: Vec<f64> = rep
                     .novelty
                     .iter()
-                    .filter(|n| n.variant == v)
+                    .filter(|n| {
+                        let base = n.variant.split(" local").next().unwrap_or(&n.variant);
+                        let name = base.to_string()
+                            + if n.set == NoveltySet::Local {
+                                " (local)"
+                            } else {
+                                ""
+                            };
+                        name == v
+                    })
                     .map(|n| n.score[k])
                     .collect();
                 match mean_std(&vals) {
@@ -585,7 +715,9 @@ fn report_markdown(
 
 // ---------------------------------------------------------------- figures
 
-const MODEL_COLOURS: [&str; NUM_MODELS] = ["#d62728", "#1f77b4", "#2ca02c", "#9ecae1", "#a1d99b"];
+const MODEL_COLOURS: [&str; NUM_MODELS] = [
+    "#d62728", "#1f77b4", "#2ca02c", "#ff9896", "#9ecae1", "#a1d99b",
+];
 
 /// An SVG line chart frame: returns (svg prefix, x→px, y→px) for data in [x0,x1]×[0,1].
 struct Frame {
@@ -722,7 +854,7 @@ pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
     all_models.push(None);
     for (k, model) in all_models.into_iter().enumerate() {
         let (col, name, dash) = match model {
-            Some(m) => (MODEL_COLOURS[m], MODELS[m], m >= 3),
+            Some(m) => (MODEL_COLOURS[m], MODELS[m], m >= FIRST_PAPER_MODEL),
             None => ("#888888", "evidence only", true),
         };
         let mut pts = Vec::new();
@@ -745,7 +877,7 @@ pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
                 model.map(|m| m as u64 + 1).unwrap_or(0),
             );
             if let Some((m, lo, hi)) = bootstrap_ci(&v, seed) {
-                let x = fr.px(l as f64) + (k as f64 - 2.5) * 3.0;
+                let x = fr.px(l as f64) + (k as f64 - 3.0) * 3.0;
                 pts.push((x, fr.py(m)));
                 let _ = writeln!(
                     s,
@@ -763,8 +895,8 @@ pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
     s
 }
 
-/// ROC curves of the novelty experiment, one per model, with AUC in the legend.
-pub fn roc_plot(rep: &Reproduction) -> String {
+/// ROC curves of one novelty set, one per model, with AUC in the legend.
+pub fn roc_plot(rep: &Reproduction, set: NoveltySet) -> String {
     let fr = Frame {
         w: 520.0,
         h: 380.0,
@@ -776,7 +908,10 @@ pub fn roc_plot(rep: &Reproduction) -> String {
         x1: 1.0,
     };
     let mut s = fr.start(
-        "Novelty detection ROC",
+        match set {
+            NoveltySet::Paper => "Novelty detection ROC (paper's swaps)",
+            NoveltySet::Local => "Novelty detection ROC (local swaps)",
+        },
         "false-positive rate",
         "true-positive rate",
     );
@@ -796,13 +931,18 @@ pub fn roc_plot(rep: &Reproduction) -> String {
     ));
     let mut names = Vec::new();
     for k in 0..NUM_MODELS {
-        let pts: Vec<(f64, bool)> = rep.novelty.iter().map(|n| (n.score[k], n.novel)).collect();
+        let pts = novelty_points(&rep.novelty, set, k);
         let curve: Vec<(f64, f64)> = roc_curve(&pts)
             .into_iter()
             .map(|(x, y)| (fr.px(x), fr.py(y)))
             .collect();
         s.push_str(&polyline(&curve, MODEL_COLOURS[k], false));
-        let a = rep.auc.map(|a| a[k]).unwrap_or(f64::NAN);
+        let a = rep
+            .auc
+            .iter()
+            .find(|(s, _)| *s == set)
+            .map(|(_, a)| a[k])
+            .unwrap_or(f64::NAN);
         names.push(format!("{} (AUC {a:.3})", MODELS[k]));
     }
     let items: Vec<(&str, &str)> = names
@@ -887,7 +1027,7 @@ fn fig8_panel(
             map,
             &RenderOptions {
                 title: Some(format!("{level}: wrong evidence (black), decomposition 1")),
-                decomposition: setup.instances[0].0.first(),
+                decomposition: setup.instances[0].decompositions().first(),
                 templates: Some(&templates),
                 highlight: &wrong,
                 ..RenderOptions::default()

@@ -26,10 +26,12 @@ use super::evidence::{
     EvidenceSimError, LevelStats, NoiseLevel, SimulatedEvidence, WrongClassDraw, derive_seed,
     level_statistics, map_truth, simulate_map_evidence_with,
 };
-use super::validate::{ModelSettings, MrfSetting, Validation, ValidationGrid, validate_for};
-use crate::decompose::{DecomposeError, Decomposition, DecompositionParams, decompose_best};
-use crate::instance::{Instance, InstanceError};
-use crate::interpreter::{Evaluator, Evidence, InferenceError};
+use super::validate::{
+    DecompositionChoice, GraphSpnSetting, ModelSettings, MrfSetting, Validation, ValidationGrid,
+    validate_for,
+};
+use crate::decompose::{DecomposeError, decompose_best};
+use crate::instance::{ComponentInstance, InstanceQueryError};
 use crate::learn::{Model, Progress, TrainModelError, TrainingSettings, train_model};
 use crate::map::{ClassId, MapError, TopoMap, cold};
 use crate::mrf::{BpOptions, BpResult, CooccurrenceParams, Mrf2, Mrf3, MrfError, MrfModel};
@@ -73,21 +75,13 @@ pub enum ReproduceError {
         /// What failed.
         source: DecomposeError,
     },
-    /// Building an instance GraphSPN failed.
-    #[error("instance GraphSPN of {map}: {source}")]
-    Instance {
-        /// Map name.
-        map: String,
-        /// What failed.
-        source: InstanceError,
-    },
-    /// Inference in an instance GraphSPN failed.
-    #[error("GraphSPN inference on {map}: {source}")]
+    /// Building an instance GraphSPN, or inference in it, failed.
+    #[error("GraphSPN on {map}: {source}")]
     Inference {
         /// Map name.
         map: String,
         /// What failed.
-        source: InferenceError,
+        source: InstanceQueryError,
     },
     /// Evidence simulation failed.
     #[error("simulating evidence for {map}: {source}")]
@@ -113,18 +107,21 @@ pub enum ReproduceError {
 pub struct ReproduceConfig {
     /// Master seed.
     pub seed: u64,
-    /// Test buildings (each is tested with a model trained on the other buildings).
+    /// Test buildings (each is tested with a model trained on the other buildings,
+    /// or on `train_buildings`).
     pub test_buildings: Vec<String>,
+    /// Buildings every model is trained (and validated) on; `None`: for each test
+    /// building, all the other buildings (the paper's protocol).
+    pub train_buildings: Option<Vec<String>>,
     /// Test maps per building (paper: 5), chosen at random (seeded).
     pub maps_per_building: usize,
     /// Evidence rounds per map and level (paper: 3).
     pub rounds: usize,
     /// Noise levels.
     pub levels: Vec<NoiseLevel>,
-    /// Decompositions in each instance GraphSPN (paper: 5) and candidates scored (15).
-    pub decomposition: DecompositionParams,
-    /// GraphSPN training settings (the seed is replaced per building).
-    pub training: TrainingSettings,
+    /// Settings of the paper-style GraphSPN ("GraphSPN paper"; the seed of its
+    /// training is replaced per building).
+    pub graphspn_paper: GraphSpnSetting,
     /// Potentials of the paper-style MRFs (raw joint frequencies by default).
     pub cooccurrence: CooccurrenceParams,
     /// Loopy BP options of the paper-style MRFs.
@@ -150,11 +147,11 @@ impl ReproduceConfig {
         ReproduceConfig {
             seed,
             test_buildings: cold::BUILDINGS.iter().map(|s| s.to_string()).collect(),
+            train_buildings: None,
             maps_per_building: usize::MAX,
             rounds: 3,
             levels: NoiseLevel::all().to_vec(),
-            decomposition: DecompositionParams::default(),
-            training: TrainingSettings::default(),
+            graphspn_paper: GraphSpnSetting::paper(),
             cooccurrence: CooccurrenceParams::default(),
             bp: BpOptions {
                 max_iterations: 200,
@@ -198,11 +195,25 @@ pub enum Experiment {
 }
 
 /// Number of models compared.
-pub const NUM_MODELS: usize = 5;
+pub const NUM_MODELS: usize = 6;
 
 /// The models compared: GraphSPN and the MRFs with validated settings, then the
-/// paper-style MRFs (raw joint frequencies, raw evidence).
-pub const MODELS: [&str; NUM_MODELS] = ["GraphSPN", "MRF-2", "MRF-3", "MRF-2 paper", "MRF-3 paper"];
+/// paper-style models (GraphSPN with the paper's settings; MRFs from raw joint
+/// frequencies with the raw evidence). Indices 3.. are the paper-style ones.
+pub const MODELS: [&str; NUM_MODELS] = [
+    "GraphSPN",
+    "MRF-2",
+    "MRF-3",
+    "GraphSPN paper",
+    "MRF-2 paper",
+    "MRF-3 paper",
+];
+
+/// Indices into [`MODELS`] of the MRFs, in the order of [`GraphResult::bp_converged`].
+pub const MRF_MODELS: [usize; 4] = [1, 2, 4, 5];
+
+/// Index into [`MODELS`] of the first paper-style model.
+pub const FIRST_PAPER_MODEL: usize = 3;
 
 /// One test graph's result.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -223,8 +234,8 @@ pub struct GraphResult {
     pub evidence_only: f64,
     /// Accuracy per model, in [`MODELS`] order (ties split evenly).
     pub accuracy: [f64; NUM_MODELS],
-    /// Whether loopy BP converged, for the MRFs ([`MODELS`] order without GraphSPN).
-    pub bp_converged: [bool; NUM_MODELS - 1],
+    /// Whether loopy BP converged, for the MRFs (in [`MRF_MODELS`] order).
+    pub bp_converged: [bool; 4],
 }
 
 /// One labelled map of the novelty experiment.
@@ -234,8 +245,11 @@ pub struct NoveltyResult {
     pub building: String,
     /// Map name.
     pub map: String,
-    /// `original`, `1PO<->2PO`, `CR<->DW` or `CR<->1PO`.
+    /// `original`, `1PO<->2PO`, `CR<->DW` or `CR<->1PO`, with ` local k` for the
+    /// local set.
     pub variant: String,
+    /// The labelling set.
+    pub set: NoveltySet,
     /// Whether the labelling counts as novel (the CR swaps).
     pub novel: bool,
     /// Number of variables (places).
@@ -266,10 +280,6 @@ pub struct Reproduction {
     pub seed: u64,
     /// Whether the paper's effective noise (wrong class drawn among all classes) was used.
     pub paper_noise: bool,
-    /// Decompositions per instance and candidates.
-    pub decompositions: (usize, usize),
-    /// Training settings used (JSON).
-    pub training: serde_json::Value,
     /// The validation behind every building's settings (empty when settings were given).
     pub validation: Vec<Validation>,
     /// Per building.
@@ -278,11 +288,13 @@ pub struct Reproduction {
     pub graphs: Vec<GraphResult>,
     /// Novelty experiment.
     pub novelty: Vec<NoveltyResult>,
-    /// Area under the ROC curve per model ([`MODELS`] order), pooled over buildings.
-    pub auc: Option<[f64; NUM_MODELS]>,
-    /// Within-map ranking: per model, the share of (novel, non-novel) labelling
-    /// pairs of the same map that the model ranks correctly (ties ½), averaged over maps.
-    pub within_map: Option<[f64; NUM_MODELS]>,
+    /// Per novelty set: the area under the ROC curve per model ([`MODELS`] order),
+    /// pooled over maps and buildings (empty when novelty was not run).
+    pub auc: Vec<(NoveltySet, [f64; NUM_MODELS])>,
+    /// Per novelty set, the within-map ranking: per model, the share of (novel,
+    /// non-novel) labelling pairs of the same map that the model ranks correctly
+    /// (ties ½), averaged over maps.
+    pub within_map: Vec<(NoveltySet, [f64; NUM_MODELS])>,
     /// Table 1 statistics of the evidence simulated on the test maps:
     /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
     pub table1: Vec<(u8, f64, f64, f64, f64)>,
@@ -294,8 +306,12 @@ pub struct Reproduction {
 pub struct BuildingSetup {
     /// Test building.
     pub building: String,
-    /// The GraphSPN model.
+    /// The GraphSPN model with validated settings.
     pub model: Model,
+    /// The paper-style GraphSPN model.
+    pub model_paper: Model,
+    /// Class shares of the training maps ([`class_prior`]).
+    pub class_prior: Vec<f64>,
     /// MRF-2 with validated settings.
     pub mrf2: Mrf2,
     /// MRF-3 with validated settings.
@@ -308,19 +324,64 @@ pub struct BuildingSetup {
     pub settings: ModelSettings,
     /// Test maps.
     pub maps: Vec<TopoMap>,
-    /// Per test map: its instance's decompositions and an evaluator of its SPN.
-    pub instances: Vec<(Vec<Decomposition>, Evaluator)>,
+    /// Per test map: the validated GraphSPN's instance (no evidence set).
+    pub instances: Vec<ComponentInstance>,
+    /// Per test map: the paper-style GraphSPN's instance.
+    pub instances_paper: Vec<ComponentInstance>,
     /// Facts for the report.
     pub info: BuildingInfo,
 }
 
-/// Index of a building in [`cold::BUILDINGS`] (for seeds).
-fn building_index(b: &str) -> Result<u64, ReproduceError> {
-    cold::BUILDINGS
-        .iter()
-        .position(|x| *x == b)
-        .map(|i| i as u64)
-        .ok_or_else(|| ReproduceError::Config(format!("unknown building {b:?}")))
+/// The seed key of a building (a named group of maps): its index in
+/// [`cold::BUILDINGS`] for the COLD buildings, else a stable hash of its name
+/// (FNV-1a, above 1,000), so every random step of a run is reproducible whatever
+/// the buildings are called.
+pub fn building_key(name: &str) -> u64 {
+    if let Some(i) = cold::BUILDINGS.iter().position(|x| *x == name) {
+        return i as u64;
+    }
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in name.bytes() {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    1000 + (h >> 24)
+}
+
+/// The buildings `test_building`'s models are trained on: `cfg.train_buildings`
+/// when given, else every other building of `all`. Errors when one is missing from
+/// `all` or is the test building itself.
+pub fn training_buildings(
+    all: &BTreeMap<String, Vec<TopoMap>>,
+    test_building: &str,
+    cfg: &ReproduceConfig,
+) -> Result<Vec<String>, ReproduceError> {
+    let names: Vec<String> = match &cfg.train_buildings {
+        Some(t) => t.clone(),
+        None => all
+            .keys()
+            .filter(|k| k.as_str() != test_building)
+            .cloned()
+            .collect(),
+    };
+    for n in &names {
+        if n == test_building {
+            return Err(ReproduceError::Config(format!(
+                "building {n:?} is both a training and the test building"
+            )));
+        }
+        if !all.contains_key(n) {
+            return Err(ReproduceError::Config(format!(
+                "no maps for training building {n:?}"
+            )));
+        }
+    }
+    if names.is_empty() {
+        return Err(ReproduceError::Config(format!(
+            "no training building for test building {test_building:?}"
+        )));
+    }
+    Ok(names)
 }
 
 /// Seed tags, so different kinds of random steps never share a seed.
@@ -328,6 +389,7 @@ const TAG_PICK: u64 = 1;
 const TAG_TRAIN: u64 = 2;
 const TAG_DECOMPOSE: u64 = 3;
 const TAG_EVIDENCE: u64 = 4;
+const TAG_NOVELTY: u64 = 6;
 /// Seed tag of the validation's random steps.
 pub(crate) const TAG_VALIDATE: u64 = 5;
 
@@ -339,12 +401,8 @@ pub fn setup_building(
     cfg: &ReproduceConfig,
     settings: ModelSettings,
 ) -> Result<BuildingSetup, ReproduceError> {
-    let b = building_index(test_building)?;
-    let trained_on: Vec<String> = all
-        .keys()
-        .filter(|k| k.as_str() != test_building)
-        .cloned()
-        .collect();
+    let b = building_key(test_building);
+    let trained_on = training_buildings(all, test_building, cfg)?;
     let train_maps: Vec<TopoMap> = trained_on
         .iter()
         .flat_map(|k| all[k].iter().cloned())
@@ -354,23 +412,28 @@ pub fn setup_building(
         .ok_or_else(|| ReproduceError::Config(format!("no maps for {test_building}")))?;
     let maps = pick_maps(candidates, cfg.maps_per_building, cfg.seed, b, TAG_PICK)
         .map_err(|e| ReproduceError::Config(format!("{test_building}: {e}")))?;
-    let training = settings.graphspn.training.clone();
-    let settings_g = TrainingSettings {
-        seed: derive_seed(cfg.seed, &[TAG_TRAIN, b]),
-        ..training
+    let train = |g: &GraphSpnSetting| {
+        let settings_g = TrainingSettings {
+            seed: derive_seed(cfg.seed, &[TAG_TRAIN, b]),
+            ..g.training.clone()
+        };
+        train_model(
+            &train_maps,
+            &Template::paper_set(),
+            &settings_g,
+            Progress::Hidden,
+        )
+        .map(|(model, _)| model)
+        .map_err(|source| ReproduceError::Train {
+            building: test_building.into(),
+            source,
+        })
     };
     let t0 = std::time::Instant::now();
-    let (model, _) = train_model(
-        &train_maps,
-        &Template::paper_set(),
-        &settings_g,
-        Progress::Hidden,
-    )
-    .map_err(|source| ReproduceError::Train {
-        building: test_building.into(),
-        source,
-    })?;
+    let model = train(&settings.graphspn)?;
+    let class_prior = class_prior(&train_maps, model.classes.len());
     let train_seconds = t0.elapsed().as_secs_f64();
+    let model_paper = train(&cfg.graphspn_paper)?;
     let mrf = |source| ReproduceError::Mrf {
         what: format!("training for {test_building}"),
         source,
@@ -379,11 +442,14 @@ pub fn setup_building(
     let mrf3 = Mrf3::train(&train_maps, &settings.mrf3.potentials).map_err(mrf)?;
     let mrf2_paper = Mrf2::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
     let mrf3_paper = Mrf3::train(&train_maps, &cfg.cooccurrence).map_err(mrf)?;
-    let instances = maps
-        .par_iter()
-        .enumerate()
-        .map(|(m, map)| build_instance(&model, map, cfg, b, m as u64))
-        .collect::<Result<Vec<_>, _>>()?;
+    let instances_of = |model: &Model, g: &GraphSpnSetting| {
+        maps.par_iter()
+            .enumerate()
+            .map(|(m, map)| build_instance(model, map, &g.decompositions, cfg.seed, b, m as u64))
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let instances = instances_of(&model, &settings.graphspn)?;
+    let instances_paper = instances_of(&model_paper, &cfg.graphspn_paper)?;
     let info = BuildingInfo {
         building: test_building.into(),
         trained_on,
@@ -394,6 +460,8 @@ pub fn setup_building(
     Ok(BuildingSetup {
         building: test_building.into(),
         model,
+        model_paper,
+        class_prior,
         mrf2,
         mrf3,
         mrf2_paper,
@@ -401,6 +469,7 @@ pub fn setup_building(
         settings,
         maps,
         instances,
+        instances_paper,
         info,
     })
 }
@@ -429,30 +498,27 @@ pub(crate) fn pick_maps(
     Ok(picked.iter().map(|&i| candidates[i].clone()).collect())
 }
 
+/// The instance GraphSPN of `map` (component-wise evaluator, no evidence) mixing
+/// the decompositions `dc` asks for, seeded by `(seed, TAG_DECOMPOSE, b, m)`.
 pub(crate) fn build_instance(
     model: &Model,
     map: &TopoMap,
-    cfg: &ReproduceConfig,
+    dc: &DecompositionChoice,
+    seed: u64,
     b: u64,
     m: u64,
-) -> Result<(Vec<Decomposition>, Evaluator), ReproduceError> {
-    let params = DecompositionParams {
-        seed: derive_seed(cfg.seed, &[TAG_DECOMPOSE, b, m]),
-        ..cfg.decomposition
-    };
-    let decs = decompose_best(map, &Template::paper_set(), &params).map_err(|source| {
+) -> Result<ComponentInstance, ReproduceError> {
+    let params = dc.params(derive_seed(seed, &[TAG_DECOMPOSE, b, m]));
+    let decs = decompose_best(map, &model.templates, &params).map_err(|source| {
         ReproduceError::Decompose {
             map: map.name.clone(),
             source,
         }
     })?;
-    let inst =
-        Instance::build(model, map, decs.clone()).map_err(|source| ReproduceError::Instance {
-            map: map.name.clone(),
-            source,
-        })?;
-    let ev = Evaluator::new(&inst.spn).map_err(|e| ReproduceError::Config(e.to_string()))?;
-    Ok((decs, ev))
+    ComponentInstance::build(model, map, decs).map_err(|source| ReproduceError::Inference {
+        map: map.name.clone(),
+        source,
+    })
 }
 
 /// Accuracy of `probs` against `truth` over the places in `scored`; a place
@@ -493,7 +559,7 @@ pub fn run_graph(
     cfg: &ReproduceConfig,
 ) -> Result<GraphOutcome, ReproduceError> {
     let map = &setup.maps[m];
-    let b = building_index(&setup.building)?;
+    let b = building_key(&setup.building);
     let seed = derive_seed(
         cfg.seed,
         &[
@@ -517,10 +583,18 @@ pub fn run_graph(
         .filter(|&i| !placeholders || map.place(i).placeholder)
         .collect();
     let g = graphspn_marginals(
-        &setup.instances[m].1,
+        &setup.instances[m],
         map,
         &ev.rows,
-        setup.settings.graphspn.evidence_exponent,
+        &setup.settings.graphspn,
+        &setup.class_prior,
+    )?;
+    let gp = graphspn_marginals(
+        &setup.instances_paper[m],
+        map,
+        &ev.rows,
+        &cfg.graphspn_paper,
+        &setup.class_prior,
     )?;
     let r2 = mrf_marginals(&setup.mrf2, &setup.settings.mrf2, map, &ev.rows)?;
     let r3 = mrf_marginals(&setup.mrf3, &setup.settings.mrf3, map, &ev.rows)?;
@@ -539,6 +613,7 @@ pub fn run_graph(
             accuracy(&g, &truth, &scored),
             accuracy(&r2.marginals, &truth, &scored),
             accuracy(&r3.marginals, &truth, &scored),
+            accuracy(&gp, &truth, &scored),
             accuracy(&p2.marginals, &truth, &scored),
             accuracy(&p3.marginals, &truth, &scored),
         ],
@@ -547,7 +622,14 @@ pub fn run_graph(
     Ok(GraphOutcome {
         result,
         evidence: ev,
-        marginals: [g, r2.marginals, r3.marginals, p2.marginals, p3.marginals],
+        marginals: [
+            g,
+            r2.marginals,
+            r3.marginals,
+            gp,
+            p2.marginals,
+            p3.marginals,
+        ],
     })
 }
 
@@ -565,22 +647,73 @@ pub fn temper_rows(rows: &[Vec<f64>], exponent: f64) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// GraphSPN marginals of `map` given evidence rows tempered by `exponent`.
+/// Share of each class among the places of `maps` (`classes` classes), smoothed
+/// towards uniform: `(n_c + α·N/C) / (N·(1 + α))` with `α = 0.1`, so a class never
+/// seen in training gets 1% of the mass (with 10 classes) rather than 0.
+pub fn class_prior(maps: &[TopoMap], classes: usize) -> Vec<f64> {
+    const ALPHA: f64 = 0.1;
+    let mut counts = vec![0.0; classes];
+    for m in maps {
+        for p in m.places() {
+            if let Some(c) = p.class.filter(|&c| (c as usize) < classes) {
+                counts[c as usize] += 1.0;
+            }
+        }
+    }
+    let n: f64 = counts.iter().sum();
+    let add = if n > 0.0 {
+        ALPHA * n / classes as f64
+    } else {
+        1.0
+    };
+    let total: f64 = counts.iter().map(|c| c + add).sum();
+    counts.iter().map(|c| (c + add) / total).collect()
+}
+
+/// The evidence rows GraphSPN is given: each row raised to `exponent`, multiplied
+/// by `prior^-beta` (class-prior correction; `beta = 0`: none) and renormalised.
+/// A place without evidence (a row of equal values) gets `prior^-beta`, so its
+/// classes are no longer ranked by how common they were in training alone.
+pub fn graphspn_rows(rows: &[Vec<f64>], exponent: f64, prior: &[f64], beta: f64) -> Vec<Vec<f64>> {
+    let tempered = temper_rows(rows, exponent);
+    if beta == 0.0 {
+        return tempered;
+    }
+    let factor: Vec<f64> = prior.iter().map(|p| p.powf(-beta)).collect();
+    tempered
+        .into_iter()
+        .map(|r| {
+            let p: Vec<f64> = r.iter().zip(&factor).map(|(x, f)| x * f).collect();
+            let s: f64 = p.iter().sum();
+            p.into_iter().map(|x| x / s).collect()
+        })
+        .collect()
+}
+
+/// GraphSPN marginals of `map` (its instance `instance`, with no evidence set) given
+/// evidence rows prepared by [`graphspn_rows`] with the setting's exponent and
+/// prior correction (`prior`: the training maps' [`class_prior`]), mixed as the
+/// setting says.
 pub fn graphspn_marginals(
-    evaluator: &Evaluator,
+    instance: &ComponentInstance,
     map: &TopoMap,
     rows: &[Vec<f64>],
-    exponent: f64,
+    setting: &GraphSpnSetting,
+    prior: &[f64],
 ) -> Result<Vec<Vec<f64>>, ReproduceError> {
-    let mut evaluator = evaluator.clone();
-    let fixed = vec![None; map.num_places()];
-    Ok(evaluator
-        .marginals(&fixed, &Evidence::from_rows(temper_rows(rows, exponent)))
-        .map_err(|source| ReproduceError::Inference {
-            map: map.name.clone(),
-            source,
-        })?
-        .probs)
+    let err = |source| ReproduceError::Inference {
+        map: map.name.clone(),
+        source,
+    };
+    let mut inst = instance.clone();
+    inst.set_all_evidence(&graphspn_rows(
+        rows,
+        setting.evidence_exponent,
+        prior,
+        setting.prior_correction,
+    ))
+    .map_err(err)?;
+    Ok(inst.marginals_mixed(setting.mixing).map_err(err)?.probs)
 }
 
 /// MRF marginals of `map` by loopy BP with the setting's evidence exponent and BP options.
@@ -602,18 +735,132 @@ pub fn mrf_marginals(
         })
 }
 
-/// A novelty-experiment labelling: `(name, novel, classes swapped)`.
-pub type NoveltyVariant = (&'static str, bool, Option<(&'static str, &'static str)>);
+/// The two labelling sets of the novelty experiment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NoveltySet {
+    /// The paper's: the original labelling and 1PO↔2PO (not novel), CR↔DW and
+    /// CR↔1PO over the whole map (novel).
+    Paper,
+    /// Harder: the same swaps inside one connected region covering a quarter of
+    /// the places ([`LOCAL_REGION_SHARE`]), [`LOCAL_REGIONS`] regions per swap;
+    /// scored together with the original labelling.
+    Local,
+}
 
-/// The labelling variants of the novelty experiment: `(name, novel, swap)`.
-pub const NOVELTY_VARIANTS: [NoveltyVariant; 4] = [
-    ("original", false, None),
-    ("1PO<->2PO", false, Some(("1PO", "2PO"))),
-    ("CR<->DW", true, Some(("CR", "DW"))),
-    ("CR<->1PO", true, Some(("CR", "1PO"))),
+/// Share of a map's places a local swap region covers.
+pub const LOCAL_REGION_SHARE: f64 = 0.25;
+
+/// Random regions per local swap and map.
+pub const LOCAL_REGIONS: usize = 3;
+
+/// The class swaps of the novelty experiment: `(name, novel, class a, class b)`.
+pub const NOVELTY_SWAPS: [(&str, bool, &str, &str); 3] = [
+    ("1PO<->2PO", false, "1PO", "2PO"),
+    ("CR<->DW", true, "CR", "DW"),
+    ("CR<->1PO", true, "CR", "1PO"),
 ];
 
-/// Per-variable log-likelihoods of the novelty variants of map `m`.
+/// One labelling of the novelty experiment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoveltyLabelling {
+    /// E.g. `original`, `CR<->DW`, `CR<->DW local 2`.
+    pub name: String,
+    /// Its set.
+    pub set: NoveltySet,
+    /// Whether it counts as novel.
+    pub novel: bool,
+    /// A class per place.
+    pub labels: Vec<ClassId>,
+}
+
+/// `truth` with classes `a` and `b` exchanged at the places where `inside` holds.
+fn swap_where(
+    truth: &[ClassId],
+    a: ClassId,
+    b: ClassId,
+    inside: impl Fn(usize) -> bool,
+) -> Vec<ClassId> {
+    truth
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| match t {
+            _ if !inside(i) => t,
+            t if t == a => b,
+            t if t == b => a,
+            t => t,
+        })
+        .collect()
+}
+
+/// A connected region of `map` grown breadth-first from `start` until it holds
+/// `size` places (or its whole component).
+fn region_from(map: &TopoMap, start: usize, size: usize) -> Vec<bool> {
+    let adj = crate::template::Adjacency::new(map);
+    let mut inside = vec![false; map.num_places()];
+    let mut queue = std::collections::VecDeque::from([start]);
+    inside[start] = true;
+    let mut count = 1;
+    while let Some(u) = queue.pop_front() {
+        for &v in adj.neighbors(u) {
+            if count >= size {
+                return inside;
+            }
+            if !inside[v] {
+                inside[v] = true;
+                count += 1;
+                queue.push_back(v);
+            }
+        }
+    }
+    inside
+}
+
+/// The labellings of the novelty experiment for a map with ground truth `truth`:
+/// the paper's set, then the local set (regions seeded by `seed`). A swap whose
+/// classes the map's class set lacks, or that changes no place, is left out.
+pub fn novelty_labellings(map: &TopoMap, truth: &[ClassId], seed: u64) -> Vec<NoveltyLabelling> {
+    let mut out = vec![NoveltyLabelling {
+        name: "original".into(),
+        set: NoveltySet::Paper,
+        novel: false,
+        labels: truth.to_vec(),
+    }];
+    let size = ((LOCAL_REGION_SHARE * truth.len() as f64).ceil() as usize).max(1);
+    for (k, (name, novel, a, b)) in NOVELTY_SWAPS.iter().enumerate() {
+        let (Some(a), Some(b)) = (map.classes.index_of(a), map.classes.index_of(b)) else {
+            continue;
+        };
+        let swapped: Vec<usize> = (0..truth.len())
+            .filter(|&i| truth[i] == a || truth[i] == b)
+            .collect();
+        if swapped.is_empty() {
+            continue;
+        }
+        out.push(NoveltyLabelling {
+            name: name.to_string(),
+            set: NoveltySet::Paper,
+            novel: *novel,
+            labels: swap_where(truth, a, b, |_| true),
+        });
+        let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[k as u64]));
+        for r in 0..LOCAL_REGIONS {
+            // The region starts at a place the swap changes.
+            let start = swapped[rand::Rng::random_range(&mut rng, 0..swapped.len())];
+            let inside = region_from(map, start, size);
+            out.push(NoveltyLabelling {
+                name: format!("{name} local {}", r + 1),
+                set: NoveltySet::Local,
+                novel: *novel,
+                labels: swap_where(truth, a, b, |i| inside[i]),
+            });
+        }
+    }
+    out
+}
+
+/// Per-variable log-likelihoods of the novelty labellings of map `m`
+/// ([`novelty_labellings`]).
 pub fn run_novelty(
     setup: &BuildingSetup,
     m: usize,
@@ -624,81 +871,80 @@ pub fn run_novelty(
         map: map.name.clone(),
         source,
     })?;
+    let b = building_key(&setup.building);
+    let labellings = novelty_labellings(
+        map,
+        &truth,
+        derive_seed(cfg.seed, &[TAG_NOVELTY, b, m as u64]),
+    );
     let n = map.num_places() as f64;
-    let mut evaluator = setup.instances[m].1.clone();
-    let mut out = Vec::new();
-    for (name, novel, swap) in NOVELTY_VARIANTS {
-        let labels: Vec<ClassId> = match swap {
-            None => truth.clone(),
-            Some((a, bname)) => {
-                let (a, bb) = match (map.classes.index_of(a), map.classes.index_of(bname)) {
-                    (Some(a), Some(bb)) => (a, bb),
-                    _ => {
-                        return Err(ReproduceError::Config(format!(
-                            "map {} lacks class {a} or {bname}",
-                            map.name
-                        )));
-                    }
-                };
-                truth
-                    .iter()
-                    .map(|&t| {
-                        if t == a {
-                            bb
-                        } else if t == bb {
-                            a
-                        } else {
-                            t
-                        }
-                    })
-                    .collect()
-            }
-        };
-        let fixed: Vec<Option<u32>> = labels.iter().map(|&l| Some(l as u32)).collect();
-        let uniform = Evidence::from_rows(vec![vec![1.0; map.classes.len()]; map.num_places()]);
-        let g = evaluator
-            .log_likelihood(&fixed, &uniform)
-            .map_err(|source| ReproduceError::Inference {
-                map: map.name.clone(),
-                source,
-            })?;
-        let mrf = |source| ReproduceError::Mrf {
-            what: map.name.clone(),
-            source,
-        };
-        let st = &setup.settings;
-        let l2 = setup
+    let gerr = |source| ReproduceError::Inference {
+        map: map.name.clone(),
+        source,
+    };
+    let graphspn = |inst: &ComponentInstance| {
+        let mut inst = inst.clone();
+        labellings
+            .iter()
+            .map(|l| {
+                let fixed: Vec<Option<ClassId>> = l.labels.iter().map(|&c| Some(c)).collect();
+                inst.log_likelihood_labelled(&fixed).map_err(gerr)
+            })
+            .collect::<Result<Vec<f64>, _>>()
+    };
+    let mrf_err = |source| ReproduceError::Mrf {
+        what: map.name.clone(),
+        source,
+    };
+    let all: Vec<Vec<ClassId>> = labellings.iter().map(|l| l.labels.clone()).collect();
+    let st = &setup.settings;
+    let scores: [Vec<f64>; NUM_MODELS] = [
+        graphspn(&setup.instances[m])?,
+        setup
             .mrf2
-            .log_likelihood_labelled(map, &labels, &st.mrf2.bp)
-            .map_err(mrf)?;
-        let l3 = setup
+            .log_likelihoods_labelled(map, &all, &st.mrf2.bp)
+            .map_err(mrf_err)?
+            .0,
+        setup
             .mrf3
-            .log_likelihood_labelled(map, &labels, &st.mrf3.bp)
-            .map_err(mrf)?;
-        let p2 = setup
+            .log_likelihoods_labelled(map, &all, &st.mrf3.bp)
+            .map_err(mrf_err)?
+            .0,
+        graphspn(&setup.instances_paper[m])?,
+        setup
             .mrf2_paper
-            .log_likelihood_labelled(map, &labels, &cfg.bp)
-            .map_err(mrf)?;
-        let p3 = setup
+            .log_likelihoods_labelled(map, &all, &cfg.bp)
+            .map_err(mrf_err)?
+            .0,
+        setup
             .mrf3_paper
-            .log_likelihood_labelled(map, &labels, &cfg.bp)
-            .map_err(mrf)?;
-        out.push(NoveltyResult {
+            .log_likelihoods_labelled(map, &all, &cfg.bp)
+            .map_err(mrf_err)?
+            .0,
+    ];
+    Ok(labellings
+        .iter()
+        .enumerate()
+        .map(|(i, l)| NoveltyResult {
             building: setup.building.clone(),
             map: map.name.clone(),
-            variant: name.into(),
-            novel,
+            variant: l.name.clone(),
+            set: l.set,
+            novel: l.novel,
             variables: map.num_places(),
-            score: [
-                g / n,
-                l2.log_likelihood / n,
-                l3.log_likelihood / n,
-                p2.log_likelihood / n,
-                p3.log_likelihood / n,
-            ],
-        });
-    }
-    Ok(out)
+            score: std::array::from_fn(|k| scores[k][i] / n),
+        })
+        .collect())
+}
+
+/// The `(score of model k, novel)` points of one novelty set: its labellings plus
+/// the original labellings (which belong to both sets).
+pub fn novelty_points(novelty: &[NoveltyResult], set: NoveltySet, k: usize) -> Vec<(f64, bool)> {
+    novelty
+        .iter()
+        .filter(|n| n.set == set || n.variant == "original")
+        .map(|n| (n.score[k], n.novel))
+        .collect()
 }
 
 /// ROC curve `(false-positive rate, true-positive rate)` points, from
@@ -738,11 +984,15 @@ pub fn auc(points: &[(f64, bool)]) -> f64 {
         .sum()
 }
 
-/// The within-map ranking measure of model `k`: for each map, the AUC of its
-/// own labellings (novel vs not), averaged over the maps that have both kinds.
-pub fn within_map_auc(novelty: &[NoveltyResult], k: usize) -> f64 {
+/// The within-map ranking measure of model `k` on one novelty set: for each map,
+/// the AUC of its own labellings of that set (novel vs not, the original included),
+/// averaged over the maps that have both kinds.
+pub fn within_map_auc(novelty: &[NoveltyResult], set: NoveltySet, k: usize) -> f64 {
     let mut maps: BTreeMap<(&str, &str), Vec<(f64, bool)>> = BTreeMap::new();
-    for n in novelty {
+    for n in novelty
+        .iter()
+        .filter(|n| n.set == set || n.variant == "original")
+    {
         maps.entry((n.building.as_str(), n.map.as_str()))
             .or_default()
             .push((n.score[k], n.novel));
@@ -781,13 +1031,17 @@ pub fn run(
             "need at least one level and one round".into(),
         ));
     }
-    let mut validation = Vec::new();
+    let mut validation: Vec<Validation> = Vec::new();
     let mut setups = Vec::new();
     for b in &cfg.test_buildings {
         let settings = match &cfg.settings {
             Some(given) => given.get(b).cloned().ok_or_else(|| {
                 ReproduceError::Config(format!("no settings given for test building {b}"))
             })?,
+            // Fixed training buildings: one validation serves every test building.
+            None if cfg.train_buildings.is_some() && !validation.is_empty() => {
+                validation[0].chosen.clone()
+            }
             None => {
                 let v = validate_for(all, b, cfg)?;
                 let chosen = v.chosen.clone();
@@ -821,8 +1075,8 @@ pub fn run(
         .collect::<Result<Vec<_>, _>>()?;
     bar.finish_and_clear();
     let mut novelty = Vec::new();
-    let mut auc_v = None;
-    let mut within = None;
+    let mut auc_v = Vec::new();
+    let mut within = Vec::new();
     if cfg.novelty {
         let njobs: Vec<(usize, usize)> = setups
             .iter()
@@ -840,15 +1094,13 @@ pub fn run(
             .collect::<Result<Vec<_>, _>>()?;
         bar.finish_and_clear();
         novelty = per.into_iter().flatten().collect();
-        let mut a = [0.0; NUM_MODELS];
-        let mut w = [0.0; NUM_MODELS];
-        for k in 0..NUM_MODELS {
-            let pts: Vec<(f64, bool)> = novelty.iter().map(|n| (n.score[k], n.novel)).collect();
-            a[k] = auc(&pts);
-            w[k] = within_map_auc(&novelty, k);
+        for set in [NoveltySet::Paper, NoveltySet::Local] {
+            let a: [f64; NUM_MODELS] =
+                std::array::from_fn(|k| auc(&novelty_points(&novelty, set, k)));
+            let w: [f64; NUM_MODELS] = std::array::from_fn(|k| within_map_auc(&novelty, set, k));
+            auc_v.push((set, a));
+            within.push((set, w));
         }
-        auc_v = Some(a);
-        within = Some(w);
     }
     // Table 1 statistics on the test maps' ground truth.
     let truths: Vec<Vec<ClassId>> = setups
@@ -880,8 +1132,6 @@ pub fn run(
     let rep = Reproduction {
         seed: cfg.seed,
         paper_noise: cfg.wrong_draw == WrongClassDraw::AnyClass,
-        decompositions: (cfg.decomposition.count, cfg.decomposition.candidates),
-        training: cfg.training.to_value(),
         validation,
         buildings: setups.iter().map(|s| s.info.clone()).collect(),
         graphs,

@@ -18,13 +18,14 @@ use serde::{Deserialize, Serialize};
 
 use super::evidence::{NoiseLevel, derive_seed, map_truth, simulate_map_evidence_with};
 use super::reproduce::{
-    ReproduceConfig, ReproduceError, TAG_VALIDATE, accuracy, build_instance, graphspn_marginals,
-    mrf_marginals, pick_maps,
+    ReproduceConfig, ReproduceError, TAG_VALIDATE, accuracy, build_instance, building_key,
+    class_prior, graphspn_rows, mrf_marginals, pick_maps, training_buildings,
 };
-use crate::interpreter::Evaluator;
+use crate::decompose::{DecompositionParams, DecompositionStrategy};
+use crate::instance::Mixing;
 use crate::learn::structure::SplitChoice;
 use crate::learn::{Progress, TrainingSettings, train_model};
-use crate::map::{ClassId, TopoMap, cold};
+use crate::map::{ClassId, TopoMap};
 use crate::mrf::{BpOptions, CooccurrenceParams, Mrf2, Mrf3, MrfModel, Normalisation, Schedule};
 use crate::template::Template;
 
@@ -49,6 +50,24 @@ impl MrfSetting {
         }
     }
 
+    /// The setting as `(option, value)` pairs: potentials, coupling, evidence, BP.
+    pub fn options(&self) -> Vec<(String, String)> {
+        let l = self.label();
+        let bp = l.rsplit(", ").next().unwrap_or("").to_string();
+        vec![
+            (
+                "potentials".into(),
+                self.potentials.normalisation.name().into(),
+            ),
+            ("coupling".into(), self.potentials.coupling.to_string()),
+            (
+                "evidence exponent".into(),
+                self.evidence_exponent.to_string(),
+            ),
+            ("BP".into(), bp),
+        ]
+    }
+
     /// Short description, e.g. `normalised^0.3, ev^1, sequential`.
     pub fn label(&self) -> String {
         format!(
@@ -69,21 +88,123 @@ impl MrfSetting {
     }
 }
 
+/// Which decompositions an instance GraphSPN mixes: how they are drawn, how many
+/// are kept and of how many candidates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DecompositionChoice {
+    /// How candidates are drawn and ranked.
+    pub strategy: DecompositionStrategy,
+    /// Decompositions kept (the instance's D).
+    pub count: usize,
+    /// Candidates drawn.
+    pub candidates: usize,
+}
+
+impl Default for DecompositionChoice {
+    /// The paper's: the best 5 of 15 random partitions.
+    fn default() -> Self {
+        DecompositionChoice {
+            strategy: DecompositionStrategy::Paper,
+            count: 5,
+            candidates: 15,
+        }
+    }
+}
+
+impl DecompositionChoice {
+    /// `strategy`, `count` of `candidates`.
+    pub fn new(strategy: DecompositionStrategy, count: usize, candidates: usize) -> Self {
+        DecompositionChoice {
+            strategy,
+            count,
+            candidates,
+        }
+    }
+
+    /// The parameters of [`crate::decompose::decompose_best`] with `seed`.
+    pub fn params(&self, seed: u64) -> DecompositionParams {
+        DecompositionParams {
+            count: self.count,
+            candidates: self.candidates,
+            seed,
+            strategy: self.strategy,
+        }
+    }
+
+    /// Short description, e.g. `cover 20/60`.
+    pub fn label(&self) -> String {
+        format!(
+            "{} {}/{}",
+            self.strategy.name(),
+            self.count,
+            self.candidates
+        )
+    }
+}
+
 /// Settings of GraphSPN.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GraphSpnSetting {
     /// Name of the training variant (template structure).
     pub variant: String,
-    /// Training settings (the seed is replaced per building).
+    /// Training settings (the seed is replaced per building); `training.temperature`
+    /// is the template temperature.
     pub training: TrainingSettings,
     /// Each evidence row is raised to this power and renormalised before inference.
     pub evidence_exponent: f64,
+    /// The decompositions of each test map's instance.
+    #[serde(default)]
+    pub decompositions: DecompositionChoice,
+    /// How the decompositions' marginals are combined.
+    #[serde(default)]
+    pub mixing: Mixing,
+    /// Class-prior correction β: evidence rows are multiplied by `prior^-β` (the
+    /// training maps' class shares; see [`super::reproduce::graphspn_rows`]). 0 = none.
+    #[serde(default)]
+    pub prior_correction: f64,
 }
 
 impl GraphSpnSetting {
-    /// Short description, e.g. `most_images, ev^2`.
+    /// The paper's GraphSPN: default training (our symmetric Star), raw evidence,
+    /// the best 5 of 15 decompositions, the exact mixture's marginals.
+    pub fn paper() -> Self {
+        GraphSpnSetting {
+            variant: "most_images".into(),
+            training: TrainingSettings::default(),
+            evidence_exponent: 1.0,
+            decompositions: DecompositionChoice::default(),
+            mixing: Mixing::Posterior,
+            prior_correction: 0.0,
+        }
+    }
+
+    /// The setting as `(option, value)` pairs: structure, temperature, evidence
+    /// exponent, decompositions, mixing.
+    pub fn options(&self) -> Vec<(String, String)> {
+        vec![
+            ("structure".into(), self.variant.clone()),
+            ("temperature".into(), self.training.temperature.to_string()),
+            (
+                "evidence exponent".into(),
+                self.evidence_exponent.to_string(),
+            ),
+            ("prior correction".into(), self.prior_correction.to_string()),
+            ("decompositions".into(), self.decompositions.label()),
+            ("mixing".into(), self.mixing.name().into()),
+        ]
+    }
+
+    /// Short description, e.g. `most_images, τ=0.8, ev^2, β=0.25, cover 20/60, average`.
     pub fn label(&self) -> String {
-        format!("{}, ev^{}", self.variant, self.evidence_exponent)
+        format!(
+            "{}, τ={}, ev^{}, β={}, {}, {}",
+            self.variant,
+            self.training.temperature,
+            self.evidence_exponent,
+            self.prior_correction,
+            self.decompositions.label(),
+            self.mixing.name()
+        )
     }
 }
 
@@ -105,6 +226,14 @@ pub struct ValidationGrid {
     pub graphspn_variants: Vec<(String, TrainingSettings)>,
     /// GraphSPN evidence exponents.
     pub graphspn_exponents: Vec<f64>,
+    /// GraphSPN template temperatures.
+    pub graphspn_temperatures: Vec<f64>,
+    /// GraphSPN decompositions.
+    pub graphspn_decompositions: Vec<DecompositionChoice>,
+    /// GraphSPN mixings.
+    pub graphspn_mixings: Vec<Mixing>,
+    /// GraphSPN class-prior corrections β.
+    pub graphspn_prior_corrections: Vec<f64>,
     /// MRF potential forms.
     pub normalisations: Vec<Normalisation>,
     /// MRF coupling exponents.
@@ -128,11 +257,16 @@ fn variant(name: &str, split: SplitChoice) -> (String, TrainingSettings) {
 }
 
 impl ValidationGrid {
-    /// The grid of `graphspn reproduce` / `graphspn validate`: 2 GraphSPN
-    /// structures × 3 evidence exponents; 4 potential forms × 3 couplings × 2
-    /// evidence exponents per MRF, then 2 BP schedules (at most 200 sweeps);
-    /// 2 maps × NL2 and NL5 × 1 round per validation building. Kept small so the
-    /// whole search takes minutes on 2 cores.
+    /// The grid of `graphspn reproduce` / `graphspn validate`, the same size for
+    /// GraphSPN and each MRF (144 candidates):
+    /// - GraphSPN: 2 Star structures × template temperature {1, 0.8, 0.6} ×
+    ///   evidence exponent {1, 2, 3} × decompositions {paper, cover} × {5 of 15,
+    ///   20 of 60} × mixing {posterior, average};
+    /// - each MRF: 4 potential forms × coupling {0.1, 0.2, 0.3, 0.45, 0.6, 1} ×
+    ///   evidence exponent {1, 2, 3}, then 2 BP schedules (at most 200 sweeps);
+    ///
+    /// on 3 maps × NL2, NL4, NL6 × 1 round per validation building,
+    /// classification and placeholders.
     pub fn standard() -> Self {
         let bp = BpOptions {
             max_iterations: 200,
@@ -143,10 +277,22 @@ impl ValidationGrid {
                 variant("most_images", SplitChoice::MostImages),
                 variant("fewest_images", SplitChoice::FewestImages),
             ],
-            graphspn_exponents: vec![1.0, 2.0, 3.0],
+            graphspn_exponents: vec![1.0, 2.0, 3.0, 4.0],
+            graphspn_temperatures: vec![1.0, 0.8, 0.6],
+            graphspn_decompositions: DecompositionStrategy::ALL
+                .iter()
+                .flat_map(|&s| {
+                    [
+                        DecompositionChoice::new(s, 5, 15),
+                        DecompositionChoice::new(s, 20, 60),
+                    ]
+                })
+                .collect(),
+            graphspn_mixings: Mixing::ALL.to_vec(),
+            graphspn_prior_corrections: vec![0.0, 0.25, 0.5],
             normalisations: Normalisation::ALL.to_vec(),
-            couplings: vec![0.3, 0.6, 1.0],
-            mrf_exponents: vec![1.0, 2.0],
+            couplings: vec![0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 1.0],
+            mrf_exponents: vec![1.0, 2.0, 3.0, 4.0],
             schedules: vec![
                 bp,
                 BpOptions {
@@ -163,8 +309,9 @@ impl ValidationGrid {
         }
     }
 
-    /// A tiny grid for smoke tests: 2 GraphSPN exponents, 2 forms × 2 couplings,
-    /// 1 map at NL2 per validation building.
+    /// A tiny grid for smoke tests: GraphSPN 2 exponents × 2 temperatures × 2
+    /// decompositions × 2 mixings; MRFs 2 forms × 2 couplings; 1 map at NL2 per
+    /// validation building.
     pub fn tiny() -> Self {
         let bp = BpOptions {
             max_iterations: 200,
@@ -173,6 +320,13 @@ impl ValidationGrid {
         ValidationGrid {
             graphspn_variants: vec![variant("most_images", SplitChoice::MostImages)],
             graphspn_exponents: vec![1.0, 2.0],
+            graphspn_temperatures: vec![1.0, 0.8],
+            graphspn_decompositions: vec![
+                DecompositionChoice::default(),
+                DecompositionChoice::new(DecompositionStrategy::Cover, 5, 15),
+            ],
+            graphspn_mixings: Mixing::ALL.to_vec(),
+            graphspn_prior_corrections: vec![0.0, 0.25],
             normalisations: vec![Normalisation::Joint, Normalisation::Normalised],
             couplings: vec![0.3, 1.0],
             mrf_exponents: vec![1.0],
@@ -191,6 +345,10 @@ pub struct CandidateScore {
     pub model: String,
     /// The setting ([`MrfSetting::label`] / [`GraphSpnSetting::label`]).
     pub setting: String,
+    /// The setting as `(option, value)` pairs ([`MrfSetting::options`] /
+    /// [`GraphSpnSetting::options`]), for the per-option summary.
+    #[serde(default)]
+    pub options: Vec<(String, String)>,
     /// Mean accuracy per fold (classification and placeholders pooled), in [0, 1].
     pub per_fold: Vec<f64>,
     /// Mean of `per_fold`.
@@ -208,6 +366,9 @@ pub struct Validation {
     pub candidates: Vec<CandidateScore>,
     /// The winners.
     pub chosen: ModelSettings,
+    /// Wall-clock seconds of each model's search (`GraphSPN`, `MRF-2`, `MRF-3`).
+    #[serde(default)]
+    pub seconds: Vec<(String, f64)>,
 }
 
 /// One validation graph.
@@ -247,11 +408,16 @@ fn fold_scores(graphs: &[VGraph], acc: &[f64], folds: usize) -> Vec<f64> {
         .collect()
 }
 
-fn candidate(model: &str, setting: String, per_fold: Vec<f64>) -> CandidateScore {
+fn candidate(
+    model: &str,
+    (setting, options): (String, Vec<(String, String)>),
+    per_fold: Vec<f64>,
+) -> CandidateScore {
     let score = per_fold.iter().sum::<f64>() / per_fold.len().max(1) as f64;
     CandidateScore {
         model: model.into(),
         setting,
+        options,
         per_fold,
         score,
     }
@@ -324,7 +490,7 @@ fn search_mrf<M: MrfModel + Sync + Send>(
                 .collect::<Result<Vec<_>, _>>()
                 .map_err(mrf_err)?;
             let pf = score_mrf(&models, s, folds, graphs)?;
-            Ok((s.clone(), candidate(name, s.label(), pf)))
+            Ok((s.clone(), candidate(name, (s.label(), s.options()), pf)))
         })
         .collect::<Result<Vec<_>, ReproduceError>>()?;
     let mut chosen = best(&scored)
@@ -344,7 +510,7 @@ fn search_mrf<M: MrfModel + Sync + Send>(
                     ..chosen.clone()
                 };
                 let pf = score_mrf(&models, &s, folds, graphs)?;
-                Ok((s.clone(), candidate(name, s.label(), pf)))
+                Ok((s.clone(), candidate(name, (s.label(), s.options()), pf)))
             })
             .collect::<Result<Vec<_>, ReproduceError>>()?;
         let first_score = out
@@ -363,25 +529,19 @@ fn search_mrf<M: MrfModel + Sync + Send>(
     Ok(chosen)
 }
 
-fn building_key(b: &str) -> u64 {
-    cold::BUILDINGS
-        .iter()
-        .position(|x| *x == b)
-        .unwrap_or(cold::BUILDINGS.len()) as u64
-}
-
-/// Validates every model's settings for `test_building` on the other buildings
-/// of `all` (see the module docs). Needs at least two other buildings.
+/// Validates every model's settings for `test_building` on its training buildings
+/// ([`training_buildings`]: the other buildings of `all`, or `cfg.train_buildings`;
+/// see the module docs). Needs at least two training buildings.
 pub fn validate_for(
     all: &BTreeMap<String, Vec<TopoMap>>,
     test_building: &str,
     cfg: &ReproduceConfig,
 ) -> Result<Validation, ReproduceError> {
     let grid = &cfg.grid;
-    let others: Vec<&String> = all.keys().filter(|k| *k != test_building).collect();
+    let others = training_buildings(all, test_building, cfg)?;
     if others.len() < 2 {
         return Err(ReproduceError::Config(format!(
-            "validation for {test_building} needs two other buildings, found {}",
+            "validation for {test_building} needs two training buildings (one to train on, one to validate on), found {}",
             others.len()
         )));
     }
@@ -391,6 +551,7 @@ pub fn validate_for(
         ));
     }
     let tb = building_key(test_building);
+    let others: Vec<&String> = others.iter().collect();
     // Folds: validate on each other building, train on the rest (never the test building).
     let mut folds = Vec::new();
     for v in &others {
@@ -411,7 +572,7 @@ pub fn validate_for(
             name: format!("{} → {v}", names.join("+")),
             train,
             val,
-            key: tb * 16 + vb,
+            key: tb.wrapping_mul(16).wrapping_add(vb),
         });
     }
     // Validation graphs (evidence shared by every candidate).
@@ -464,8 +625,11 @@ pub fn validate_for(
         }
     }
     let mut candidates = Vec::new();
+    let mut seconds = Vec::new();
+    let clock = std::time::Instant::now();
 
-    // GraphSPN: train each variant on each fold, then score every exponent.
+    // GraphSPN: train each structure variant on each fold (temperature 1), then
+    // temper, decompose and score every setting; evidence shared by every candidate.
     let jobs: Vec<(usize, usize)> = (0..grid.graphspn_variants.len())
         .flat_map(|v| (0..folds.len()).map(move |f| (v, f)))
         .collect();
@@ -475,56 +639,118 @@ pub fn validate_for(
             let fold = &folds[f];
             let settings = TrainingSettings {
                 seed: derive_seed(cfg.seed, &[TAG_VALIDATE, fold.key, v as u64]),
+                temperature: 1.0,
                 ..grid.graphspn_variants[v].1.clone()
             };
-            let (model, _) = train_model(
+            train_model(
                 &fold.train,
                 &Template::paper_set(),
                 &settings,
                 Progress::Hidden,
             )
+            .map(|(model, _)| model)
             .map_err(|source| ReproduceError::Train {
                 building: format!("validation fold {}", fold.name),
                 source,
-            })?;
-            let inst = fold
-                .val
-                .iter()
-                .enumerate()
-                .map(|(m, map)| build_instance(&model, map, cfg, 100 + fold.key, m as u64))
-                .collect::<Result<Vec<_>, _>>()?;
-            Ok(inst.into_iter().map(|(_, e)| e).collect::<Vec<Evaluator>>())
+            })
         })
         .collect::<Result<Vec<_>, ReproduceError>>()?;
+    let priors: Vec<Vec<f64>> = folds
+        .iter()
+        .map(|f| class_prior(&f.train, trained[0].classes.len()))
+        .collect();
     let mut g_scored = Vec::new();
     for (v, (vname, vsettings)) in grid.graphspn_variants.iter().enumerate() {
-        for &e in &grid.graphspn_exponents {
-            let acc = graphs
-                .par_iter()
-                .map(|g| {
-                    let ev = &trained[v * folds.len() + g.fold][g.map];
-                    let map = &folds[g.fold].val[g.map];
-                    let p = graphspn_marginals(ev, map, &g.rows, e)?;
-                    Ok(accuracy(&p, &g.truth, &g.scored))
-                })
-                .collect::<Result<Vec<_>, ReproduceError>>()?;
-            let s = GraphSpnSetting {
-                variant: vname.clone(),
-                training: vsettings.clone(),
-                evidence_exponent: e,
-            };
-            let c = candidate(
-                "GraphSPN",
-                s.label(),
-                fold_scores(&graphs, &acc, folds.len()),
-            );
-            g_scored.push((s, c));
+        for &tau in &grid.graphspn_temperatures {
+            let models = (0..folds.len())
+                .map(|f| trained[v * folds.len() + f].tempered(tau))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| ReproduceError::Config(e.to_string()))?;
+            for dc in &grid.graphspn_decompositions {
+                // One instance per validation map (decomposition seeds as before).
+                let instances = folds
+                    .iter()
+                    .enumerate()
+                    .map(|(f, fold)| {
+                        fold.val
+                            .iter()
+                            .enumerate()
+                            .map(|(m, map)| {
+                                build_instance(
+                                    &models[f],
+                                    map,
+                                    dc,
+                                    cfg.seed,
+                                    100 + fold.key,
+                                    m as u64,
+                                )
+                            })
+                            .collect::<Result<Vec<_>, _>>()
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                // Per graph, one copy of its instance: one evaluation per (exponent,
+                // prior correction), read out with every mixing. acc[graph][row kind][mixing].
+                let row_kinds: Vec<(f64, f64)> = grid
+                    .graphspn_exponents
+                    .iter()
+                    .flat_map(|&e| grid.graphspn_prior_corrections.iter().map(move |&b| (e, b)))
+                    .collect();
+                let acc = graphs
+                    .par_iter()
+                    .map(|g| {
+                        let map = &folds[g.fold].val[g.map];
+                        let err = |source| ReproduceError::Inference {
+                            map: map.name.clone(),
+                            source,
+                        };
+                        let mut inst = instances[g.fold][g.map].clone();
+                        row_kinds
+                            .iter()
+                            .map(|&(e, beta)| {
+                                let rows = graphspn_rows(&g.rows, e, &priors[g.fold], beta);
+                                inst.set_all_evidence(&rows).map_err(err)?;
+                                grid.graphspn_mixings
+                                    .iter()
+                                    .map(|&mx| {
+                                        let p = inst.marginals_mixed(mx).map_err(err)?.probs;
+                                        Ok(accuracy(&p, &g.truth, &g.scored))
+                                    })
+                                    .collect::<Result<Vec<f64>, ReproduceError>>()
+                            })
+                            .collect::<Result<Vec<_>, ReproduceError>>()
+                    })
+                    .collect::<Result<Vec<_>, ReproduceError>>()?;
+                for (ri, &(e, beta)) in row_kinds.iter().enumerate() {
+                    for (mi, &mixing) in grid.graphspn_mixings.iter().enumerate() {
+                        let s = GraphSpnSetting {
+                            variant: vname.clone(),
+                            training: TrainingSettings {
+                                temperature: tau,
+                                ..vsettings.clone()
+                            },
+                            evidence_exponent: e,
+                            decompositions: *dc,
+                            mixing,
+                            prior_correction: beta,
+                        };
+                        let a: Vec<f64> = acc.iter().map(|per| per[ri][mi]).collect();
+                        let c = candidate(
+                            "GraphSPN",
+                            (s.label(), s.options()),
+                            fold_scores(&graphs, &a, folds.len()),
+                        );
+                        g_scored.push((s, c));
+                    }
+                }
+            }
         }
     }
     let graphspn = best(&g_scored)
         .ok_or_else(|| ReproduceError::Config("GraphSPN validation grid is empty".into()))?;
     candidates.extend(g_scored.into_iter().map(|(_, c)| c));
+    seconds.push(("GraphSPN".to_string(), clock.elapsed().as_secs_f64()));
 
+    let clock = std::time::Instant::now();
     let mrf2 = search_mrf(
         "MRF-2",
         Mrf2::train,
@@ -534,6 +760,8 @@ pub fn validate_for(
         &graphs,
         &mut candidates,
     )?;
+    seconds.push(("MRF-2".to_string(), clock.elapsed().as_secs_f64()));
+    let clock = std::time::Instant::now();
     let mrf3 = search_mrf(
         "MRF-3",
         Mrf3::train,
@@ -543,7 +771,9 @@ pub fn validate_for(
         &graphs,
         &mut candidates,
     )?;
+    seconds.push(("MRF-3".to_string(), clock.elapsed().as_secs_f64()));
     Ok(Validation {
+        seconds,
         test_building: test_building.into(),
         folds: folds.iter().map(|f| f.name.clone()).collect(),
         candidates,

@@ -4,7 +4,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use thiserror::Error;
 
-use crate::decompose::{Component, Decomposition};
+use crate::decompose::{Component, Decomposition, DecompositionStrategy};
 use crate::learn::Model;
 use crate::map::TopoMap;
 use crate::spn::{Node, NodeId, Spn};
@@ -19,6 +19,8 @@ pub struct InstanceParams {
     pub candidates: usize,
     /// Seed of every random choice.
     pub seed: u64,
+    /// How candidate decompositions are drawn and ranked. Default: the paper's.
+    pub strategy: DecompositionStrategy,
 }
 
 impl Default for InstanceParams {
@@ -27,6 +29,7 @@ impl Default for InstanceParams {
             decompositions: 5,
             candidates: 15,
             seed: 0,
+            strategy: DecompositionStrategy::Paper,
         }
     }
 }

@@ -58,6 +58,42 @@ const LEAF: u8 = 0;
 const SUM: u8 = 1;
 const PRODUCT: u8 = 2;
 
+/// How [`ComponentInstance::marginals_mixed`] combines the decompositions' marginals.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Mixing {
+    /// Weight `P(d | evidence)`: the exact marginals of the instance GraphSPN (the
+    /// mixture of the D decompositions).
+    #[default]
+    Posterior,
+    /// Weight `1/D`: the mean of the D decompositions' exact marginals. With a
+    /// posterior weight the best-fitting decomposition usually dominates (one
+    /// decomposition carries most of the weight on COLD maps), so each place sees
+    /// only its component in that decomposition; the average lets every place
+    /// see all D of its neighbourhoods. Not the posterior of one model.
+    Average,
+}
+
+impl Mixing {
+    /// Both, in a fixed order.
+    pub const ALL: [Mixing; 2] = [Mixing::Posterior, Mixing::Average];
+
+    /// Short name (`posterior`, `average`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Mixing::Posterior => "posterior",
+            Mixing::Average => "average",
+        }
+    }
+
+    /// The mixing called `name` (see [`Mixing::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
 /// One template SPN flattened for evaluation on any component (CSR arrays, logs of
 /// the weights); leaves index `var × classes + class` of a component's slot row.
 #[derive(Clone, Debug)]
@@ -375,6 +411,7 @@ impl ComponentInstance {
             count: params.decompositions,
             candidates: params.candidates,
             seed: params.seed,
+            strategy: params.strategy,
         };
         let decompositions = decompose_best(map, &model.templates, &dp).map_err(|source| {
             InstanceQueryError::Decompose {
@@ -835,6 +872,31 @@ impl ComponentInstance {
             log_likelihood: self.log_likelihood()?,
             probs,
         })
+    }
+
+    /// Per-place class probabilities mixed as `mixing` says, and `ln P(evidence)`:
+    /// [`Mixing::Posterior`] is [`ComponentInstance::marginals`] (the exact
+    /// marginals of the mixture); [`Mixing::Average`] gives every decomposition the
+    /// same weight `1/D` (the mean of the D decompositions' exact marginals, an
+    /// ensemble rather than the mixture's posterior). Same costs as `marginals`.
+    pub fn marginals_mixed(&mut self, mixing: Mixing) -> Result<Marginals, InstanceQueryError> {
+        match mixing {
+            Mixing::Posterior => self.marginals(),
+            Mixing::Average => {
+                self.refresh_posteriors();
+                // Errors as `marginals` does when the evidence has probability 0.
+                let log_likelihood = self.log_likelihood()?;
+                let d = self.dec_comps.len();
+                let w = vec![1.0 / d as f64; d];
+                let probs = (0..self.num_places)
+                    .map(|p| self.mixed_row(p, &w))
+                    .collect();
+                Ok(Marginals {
+                    log_likelihood,
+                    probs,
+                })
+            }
+        }
     }
 
     /// `P(Y_place = c | evidence)` for one place index: ≤ D component downward passes

@@ -31,6 +31,8 @@ mod grow;
 mod query;
 
 pub use build::{CopyStats, Instance, InstanceError, InstanceParams};
-pub use components::{ComponentInstance, estimated_component_bytes, estimated_explicit_bytes};
+pub use components::{
+    ComponentInstance, Mixing, estimated_component_bytes, estimated_explicit_bytes,
+};
 pub use grow::grow_decompositions;
 pub use query::{InstanceModel, InstanceQueryError};

@@ -64,6 +64,7 @@ impl Instance {
             count: params.decompositions,
             candidates: params.candidates,
             seed: params.seed,
+            strategy: params.strategy,
         };
         let decompositions = decompose_best(map, &model.templates, &dp).map_err(|source| {
             InstanceQueryError::Decompose {

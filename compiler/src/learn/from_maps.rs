@@ -53,6 +53,9 @@ pub enum TrainModelError {
         /// What failed.
         source: LearnError,
     },
+    /// The template temperature is not finite and positive.
+    #[error(transparent)]
+    Temperature(#[from] super::BadTemperature),
 }
 
 /// What [`train_model`] learned, per template.
@@ -145,6 +148,7 @@ pub fn train_model(
     progress: Progress,
 ) -> Result<(Model, Vec<TemplateTraining>), TrainModelError> {
     let first = maps.first().ok_or(TrainModelError::NoMaps)?;
+    super::check_temperature(settings.temperature)?;
     if templates.is_empty() {
         return Err(TrainModelError::NoTemplates);
     }
@@ -184,6 +188,8 @@ pub fn train_model(
             template: template.name.clone(),
             source,
         })?;
+        let mut spn = spn;
+        super::temper_spn(&mut spn, settings.temperature)?;
         spns.push(spn);
         trainings.push(TemplateTraining {
             template: template.name.clone(),

@@ -5,6 +5,7 @@
 //! - [`train`](mod@train): hard / soft EM on complete samples, pruning;
 //! - [`symmetry`]: augmentation with template automorphisms and weight tying;
 //! - [`settings`]: [`TrainingSettings`], stored in the model file;
+//! - [`temperature`]: a temperature on the template SPNs (sum weights `w^τ`, renormalised);
 //! - [`file`](mod@file): reading and writing [`Model`] files.
 
 pub mod file;
@@ -14,6 +15,7 @@ pub mod model;
 pub mod settings;
 pub mod structure;
 pub mod symmetry;
+pub mod temperature;
 #[cfg(feature = "host")]
 pub mod train;
 
@@ -28,6 +30,7 @@ pub use structure::{
 #[cfg(feature = "host")]
 pub use symmetry::augment_with_automorphisms;
 pub use symmetry::{EdgeOrbits, edge_orbits};
+pub use temperature::{BadTemperature, check_temperature, temper_spn};
 #[cfg(feature = "host")]
 pub use train::{Progress, TrainError, TrainingReport, train, train_tied};
 

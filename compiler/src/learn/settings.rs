@@ -67,6 +67,15 @@ pub struct TrainingSettings {
     pub symmetry: Symmetry,
     /// Master seed: structure, initial weights and decompositions derive from it.
     pub seed: u64,
+    /// Temperature applied to every template SPN after training (sum weights
+    /// raised to this power and renormalised; see [`super::temperature`]). 1 = none
+    /// (and then not written, so model files of untempered models are unchanged).
+    #[serde(skip_serializing_if = "is_one")]
+    pub temperature: f64,
+}
+
+fn is_one(x: &f64) -> bool {
+    *x == 1.0
 }
 
 impl Default for TrainingSettings {
@@ -83,6 +92,7 @@ impl Default for TrainingSettings {
             prune_threshold: 0.0,
             symmetry: Symmetry::Tied,
             seed: 0,
+            temperature: 1.0,
         }
     }
 }

@@ -140,6 +140,12 @@ pub enum MapError {
         /// The building folder.
         path: PathBuf,
     },
+    /// A folder given as a set of maps holds no map.
+    #[error("{}: holds no map (expected JSON map files or COLD sequence folders with nodes.dat)", path.display())]
+    NoMaps {
+        /// The folder.
+        path: PathBuf,
+    },
     /// Two places share an id.
     #[error("place id {id} appears twice")]
     DuplicatePlace {

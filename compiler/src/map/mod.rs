@@ -11,11 +11,13 @@ pub mod cold;
 mod error;
 mod graph;
 mod json;
+mod set;
 pub mod stats;
 pub mod synthetic;
 
 pub use error::MapError;
 pub use json::MAP_FORMAT;
+pub use set::{load_map_set, map_set_name};
 
 /// Index of a class in a [`ClassSet`].
 pub type ClassId = u16;

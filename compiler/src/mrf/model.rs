@@ -208,22 +208,39 @@ pub trait MrfModel {
         labels: &[ClassId],
         opts: &BpOptions,
     ) -> Result<LabelledLikelihood, MrfError> {
-        let fg = self.factor_graph(map, None)?;
-        if labels.len() != map.num_places() {
-            return Err(MrfError::BadInput(format!(
-                "map {}: {} labels for {} places",
-                map.name,
-                labels.len(),
-                map.num_places()
-            )));
-        }
-        let x: Vec<usize> = labels.iter().map(|&l| l as usize).collect();
-        let score = fg.log_score(&x)?;
-        let bp = loopy_bp(&fg, opts)?;
+        let (mut ll, bp) =
+            self.log_likelihoods_labelled(map, std::slice::from_ref(&labels.to_vec()), opts)?;
         Ok(LabelledLikelihood {
-            log_likelihood: score - bp.log_z_bethe,
+            log_likelihood: ll.pop().unwrap_or(f64::NAN),
             bp,
         })
+    }
+
+    /// [`MrfModel::log_likelihood_labelled`] of several labellings of one map with
+    /// one BP run (`log Z_Bethe` does not depend on the labels): the
+    /// log-likelihoods in the order given, and the BP result.
+    fn log_likelihoods_labelled(
+        &self,
+        map: &TopoMap,
+        labellings: &[Vec<ClassId>],
+        opts: &BpOptions,
+    ) -> Result<(Vec<f64>, BpResult), MrfError> {
+        let fg = self.factor_graph(map, None)?;
+        let mut scores = Vec::with_capacity(labellings.len());
+        for labels in labellings {
+            if labels.len() != map.num_places() {
+                return Err(MrfError::BadInput(format!(
+                    "map {}: {} labels for {} places",
+                    map.name,
+                    labels.len(),
+                    map.num_places()
+                )));
+            }
+            let x: Vec<usize> = labels.iter().map(|&l| l as usize).collect();
+            scores.push(fg.log_score(&x)?);
+        }
+        let bp = loopy_bp(&fg, opts)?;
+        Ok((scores.iter().map(|s| s - bp.log_z_bethe).collect(), bp))
     }
 }
 

@@ -184,6 +184,55 @@ impl Matcher {
         self.search(adj, root, used, Some(&mut dyn_rng), out)
     }
 
+    /// Like [`Matcher::find_at`], but a star-shaped template takes the unused
+    /// neighbours of `root` that have the fewest *other* unused neighbours first
+    /// (ties in random order): a place whose only free neighbour is `root` (a
+    /// placeholder at the frontier, say) joins this component instead of being
+    /// left to become a singleton. Other templates match as in `find_at`.
+    pub fn find_covering_at<R: Rng + ?Sized>(
+        &self,
+        adj: &Adjacency,
+        root: usize,
+        used: &[bool],
+        rng: &mut R,
+        out: &mut Vec<usize>,
+    ) -> bool {
+        let Kind::Star { leaves } = self.kind else {
+            return self.find_at(adj, root, used, rng, out);
+        };
+        out.clear();
+        if used[root] {
+            return false;
+        }
+        let mut free: Vec<(usize, usize)> = adj
+            .neighbors(root)
+            .iter()
+            .copied()
+            .filter(|&v| !used[v])
+            .map(|v| {
+                let others = adj
+                    .neighbors(v)
+                    .iter()
+                    .filter(|&&w| w != root && !used[w])
+                    .count();
+                (others, v)
+            })
+            .collect();
+        if free.len() < leaves {
+            return false;
+        }
+        // A uniformly random order, then a stable sort by free degree: ties stay random.
+        let len = free.len();
+        for i in 0..len.saturating_sub(1) {
+            let j = rng.random_range(i..len);
+            free.swap(i, j);
+        }
+        free.sort_by_key(|&(others, _)| others);
+        out.push(root);
+        out.extend(free[..leaves].iter().map(|&(_, v)| v));
+        true
+    }
+
     /// Whether any match with template node 0 at `root` exists among places
     /// with `used[p] == false` (deterministic, no randomness).
     pub fn exists_at(&self, adj: &Adjacency, root: usize, used: &[bool]) -> bool {

@@ -1,0 +1,65 @@
+//! A temperature on the template SPNs: every sum's weights raised to a power and
+//! renormalised. For a template whose SPN is a full table (Pair, Three) this is
+//! exactly the tempered distribution `p(y)^τ / Z`; for the Star's mixture it
+//! tempers each mixing step. `τ < 1` flattens the learned co-occurrence
+//! statistics (the counterpart of an MRF's coupling exponent), `τ = 1` leaves the
+//! model unchanged.
+
+use super::Model;
+use crate::spn::{Node, Spn};
+
+/// Why a temperature cannot be applied.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("template temperature must be finite and > 0, got {0}")]
+pub struct BadTemperature(pub f64);
+
+/// Checks a temperature (finite and > 0).
+pub fn check_temperature(tau: f64) -> Result<(), BadTemperature> {
+    if tau.is_finite() && tau > 0.0 {
+        Ok(())
+    } else {
+        Err(BadTemperature(tau))
+    }
+}
+
+/// Raises every sum weight of `spn` to the power `tau` and renormalises each sum
+/// (weights summing to 1 again, to rounding). `tau = 1` changes nothing (not even
+/// the last bit). Zero weights stay zero.
+pub fn temper_spn(spn: &mut Spn, tau: f64) -> Result<(), BadTemperature> {
+    check_temperature(tau)?;
+    if tau == 1.0 {
+        return Ok(());
+    }
+    for node in &mut spn.nodes {
+        if let Node::Sum { weights, .. } = node {
+            let powered: Vec<f64> = weights.iter().map(|w| w.powf(tau)).collect();
+            let z: f64 = powered.iter().sum();
+            if z > 0.0 && z.is_finite() {
+                for (w, p) in weights.iter_mut().zip(powered) {
+                    *w = p / z;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+impl Model {
+    /// This model with every template SPN tempered by `tau` (see [`temper_spn`]);
+    /// the `temperature` entry of [`Model::settings`] records the product of the
+    /// temperatures applied.
+    pub fn tempered(&self, tau: f64) -> Result<Model, BadTemperature> {
+        let mut out = self.clone();
+        for spn in &mut out.spns {
+            temper_spn(spn, tau)?;
+        }
+        if let serde_json::Value::Object(map) = &mut out.settings {
+            let before = map
+                .get("temperature")
+                .and_then(serde_json::Value::as_f64)
+                .unwrap_or(1.0);
+            map.insert("temperature".into(), serde_json::json!(before * tau));
+        }
+        Ok(out)
+    }
+}

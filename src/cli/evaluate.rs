@@ -1,0 +1,201 @@
+//! `graphspn evaluate`: the paper's protocol (classification, placeholders, novelty)
+//! on a user's own maps, against the validated baselines.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use graphspn_compiler::experiments::evidence::NoiseLevel;
+use graphspn_compiler::experiments::report::write_outputs;
+use graphspn_compiler::experiments::reproduce::{ReproduceConfig, run};
+use graphspn_compiler::experiments::validate::ValidationGrid;
+use graphspn_compiler::map::{TopoMap, cold, load_map_set, map_set_name};
+
+use super::common::require_data_dir;
+use super::output::{Outputs, write_folder};
+
+/// Arguments of `graphspn evaluate`.
+#[derive(Args)]
+#[command(after_help = "Examples:
+  graphspn evaluate --maps my_building/ --out eval/
+  graphspn evaluate --maps floor1.json --maps floor2.json --levels 2,5 --rounds 3 --out eval/
+  graphspn evaluate --maps siteA/ --train siteB/ --train siteC/ --out eval/
+
+Each --maps path is one test building: a JSON map, a COLD sequence folder, or a folder
+of JSON maps and/or COLD sequence folders. Maps need a ground-truth class for every
+place (the evidence is simulated from it, as in the paper's protocol) and the models'
+class set. Models are trained on the --train buildings (default: the three COLD
+buildings), every model's settings chosen by leave-one-training-building-out
+validation on them; the --maps buildings are never read before testing.")]
+pub struct EvaluateArgs {
+    /// A test building (repeatable): JSON map, COLD sequence folder, or folder of maps.
+    #[arg(long = "maps", required = true)]
+    maps: Vec<PathBuf>,
+    /// A training building (repeatable, at least two for the validation); default:
+    /// Freiburg, Saarbrucken and Stockholm from the COLD data folder.
+    #[arg(long = "train")]
+    train: Vec<PathBuf>,
+    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Output folder (REPORT.md, results.json, *.svg); created if missing, must be
+    /// empty unless --force.
+    #[arg(long)]
+    out: PathBuf,
+    /// Write into a non-empty --out folder, replacing files of the same names.
+    #[arg(long)]
+    force: bool,
+    /// Master seed of every random step.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Noise levels, comma-separated (default: 1..6).
+    #[arg(long, value_delimiter = ',')]
+    levels: Option<Vec<u8>>,
+    /// Evidence rounds per map and level.
+    #[arg(long, default_value_t = 3)]
+    rounds: usize,
+    /// Test maps per building (default: all), chosen at random (seeded).
+    #[arg(long)]
+    max_maps: Option<usize>,
+    /// Skip the novelty-detection experiment.
+    #[arg(long)]
+    no_novelty: bool,
+    /// Tiny validation grid (smoke runs).
+    #[arg(long)]
+    tiny_grid: bool,
+}
+
+/// Loads the map sets of `paths` under their names; `flag` names them in errors.
+fn load_sets(flag: &str, paths: &[PathBuf]) -> Result<Vec<(String, Vec<TopoMap>)>> {
+    let mut out: Vec<(String, Vec<TopoMap>)> = Vec::new();
+    for p in paths {
+        let name = map_set_name(p);
+        if out.iter().any(|(n, _)| *n == name) {
+            bail!(
+                "{flag} {}: another {flag} path is also called {name:?} (buildings are reported by folder or file name)",
+                p.display()
+            );
+        }
+        let maps = load_map_set(p).with_context(|| format!("{flag} {}", p.display()))?;
+        out.push((name, maps));
+    }
+    Ok(out)
+}
+
+/// Runs `graphspn evaluate`.
+pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
+    // Every argument and the output folder are checked before any computation.
+    let mut outputs = Outputs::new(args.force);
+    for p in &args.maps {
+        if !p.exists() {
+            bail!("--maps {}: no such file or folder", p.display());
+        }
+        outputs.input("--maps", p);
+    }
+    for p in &args.train {
+        if !p.exists() {
+            bail!("--train {}: no such file or folder", p.display());
+        }
+        outputs.input("--train", p);
+    }
+    let data = if args.train.is_empty() {
+        let d = require_data_dir(args.data.clone())?;
+        outputs.input("--data", &d);
+        Some(d)
+    } else {
+        if args.data.is_some() {
+            bail!(
+                "--data: not used when --train is given (the training buildings are the --train paths)"
+            );
+        }
+        None
+    };
+    if args.train.len() == 1 {
+        bail!(
+            "--train: give at least two training buildings (the validation trains on one and validates on another), or none for the three COLD buildings"
+        );
+    }
+    outputs.folder("--out", &args.out)?;
+    let mut cfg = ReproduceConfig::full(args.seed);
+    if let Some(l) = &args.levels {
+        if l.is_empty() {
+            bail!("--levels: give at least one noise level");
+        }
+        cfg.levels = l
+            .iter()
+            .map(|&x| NoiseLevel::new(x).with_context(|| format!("--levels {x}")))
+            .collect::<Result<_, _>>()?;
+    }
+    if args.rounds == 0 {
+        bail!("--rounds 0: run at least one round");
+    }
+    cfg.rounds = args.rounds;
+    if let Some(m) = args.max_maps {
+        if m == 0 {
+            bail!("--max-maps 0: test at least one map per building");
+        }
+        cfg.maps_per_building = m;
+    }
+    if args.no_novelty {
+        cfg.novelty = false;
+    }
+    if args.tiny_grid {
+        cfg.grid = ValidationGrid::tiny();
+    }
+
+    let start = Instant::now();
+    let tests = load_sets("--maps", &args.maps)?;
+    let train = match &data {
+        Some(d) => cold::BUILDINGS
+            .iter()
+            .map(|b| Ok((b.to_string(), cold::load_building(d, b)?)))
+            .collect::<Result<Vec<_>>>()?,
+        None => load_sets("--train", &args.train)?,
+    };
+    let mut all: BTreeMap<String, Vec<TopoMap>> = BTreeMap::new();
+    let classes = &train[0].1[0].classes;
+    for (flag, sets) in [("--train", &train), ("--maps", &tests)] {
+        for (name, maps) in sets.iter() {
+            if all.contains_key(name) {
+                bail!(
+                    "{flag}: a test and a training building are both called {name:?}; rename one folder"
+                );
+            }
+            for m in maps {
+                if &m.classes != classes {
+                    bail!(
+                        "{flag}: map {:?} has classes {:?}, but the training maps have {:?}",
+                        m.name,
+                        m.classes.names(),
+                        classes.names()
+                    );
+                }
+                if flag == "--maps"
+                    && let Some(p) = m.places().find(|p| p.class.is_none())
+                {
+                    bail!(
+                        "--maps: map {:?}, place {}: no ground-truth class (evaluation simulates evidence from the true classes)",
+                        m.name,
+                        p.id
+                    );
+                }
+            }
+            all.insert(name.clone(), maps.clone());
+        }
+    }
+    cfg.test_buildings = tests.iter().map(|(n, _)| n.clone()).collect();
+    cfg.train_buildings = Some(train.iter().map(|(n, _)| n.clone()).collect());
+    let (mut rep, setups) = run(&all, &cfg)?;
+    rep.seconds = start.elapsed().as_secs_f64();
+    write_folder(&args.out, |dir| {
+        Ok(write_outputs(&rep, &setups, &cfg, dir, "")?)
+    })?;
+    eprintln!(
+        "evaluation done in {:.1} s; wrote {}",
+        start.elapsed().as_secs_f64(),
+        args.out.join("REPORT.md").display()
+    );
+    Ok(())
+}
