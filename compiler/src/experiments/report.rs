@@ -405,6 +405,15 @@ fn settings_section(rep: &Reproduction) -> String {
             st.mrf3.label()
         );
     }
+    if !rep.validation.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nWhat each option gives in validation (score in %, averaged over the test \
+             buildings' validations): the best setting having that value, and the mean of \
+             all settings having it.\n"
+        );
+        s.push_str(&option_summary(&rep.validation));
+    }
     s.push_str(&validation_tables(&rep.validation, 5));
     s
 }
@@ -690,8 +699,10 @@ fn report_markdown(
     let _ = writeln!(s, "\n## Figures\n");
     let _ = writeln!(
         s,
-        "`accuracy_*.svg`: accuracy vs noise level per test building (lines: models; \
-         grey dashed: evidence only). `roc.svg`: novelty-detection ROC. \
+        "`accuracy_*.svg`: accuracy vs noise level per test building (lines: models, \
+         dashed: paper-style; grey dashed: evidence only; bars: map-level bootstrap 95% \
+         intervals). `roc.svg`, `roc_local.svg`: novelty-detection ROC of the paper's \
+         and of the local swaps. \
          `fig8_*.svg`: first test map at {fig_level} (ground truth; places whose \
          evidence argmax is wrong in black; GraphSPN's labels; MRF-2's labels). \
          `placeholders_*.svg`: GraphSPN's marginals of the placeholders (pies) at \
@@ -703,8 +714,9 @@ fn report_markdown(
     let _ = writeln!(
         s,
         "\n## Generated code check\n\n\
-         GraphSPN marginals above come from the instance GraphSPN evaluated by the \
-         interpreter: each test map gets a model trained on the other buildings, so no \
+         GraphSPN marginals above come from the instance GraphSPN evaluated component by \
+         component on the host (`ComponentInstance`, tested against the interpreter to \
+         1e-9): each test map gets a model trained on the other buildings, so no \
          test map is a fixed, compiled one. The generated code applies to a map known at \
          build time; the check below (written by `graphspn reproduce`, empty when the \
          library is called directly) compares it with the interpreter on such a map.\n"

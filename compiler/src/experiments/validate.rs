@@ -1,15 +1,19 @@
 //! Leave-one-training-building-out validation: chooses every model's settings
-//! (GraphSPN's template structure and evidence exponent; each MRF's potential
-//! form, coupling, evidence exponent and BP schedule) for one test building
-//! using only the other buildings.
+//! for one test building using only its training buildings:
+//! - GraphSPN: Star structure, template temperature, evidence exponent,
+//!   class-prior correction, decompositions (strategy and number) and how the
+//!   decompositions' marginals are mixed (searched jointly);
+//! - each MRF: potential form, coupling and evidence exponent (jointly), then the
+//!   BP schedule at the winner.
 //!
 //! For test building `T` with training buildings `{X, Y}` there are two folds:
-//! train on `X`, validate on maps of `Y`, and the reverse. Each candidate
-//! setting of a model is scored by its mean accuracy over the validation
-//! graphs (classification over all places and placeholders without evidence,
-//! pooled), averaged over the two folds; the best score wins (ties: the first
-//! in grid order). MRF potentials and evidence exponent are searched jointly,
-//! then the BP schedule at the chosen potential. No test-building map is read.
+//! train on `X`, validate on maps of `Y`, and the reverse (with more training
+//! buildings, one fold per building: validate on it, train on the others). Each
+//! candidate setting is scored by its mean accuracy over the validation graphs
+//! (classification over all places and placeholders without evidence, pooled),
+//! averaged over the folds; the best score wins (ties: the first in grid order).
+//! Every candidate of every model sees the same validation graphs (maps, noise
+//! levels, evidence). No test-building map is read.
 
 use std::collections::BTreeMap;
 
@@ -257,13 +261,14 @@ fn variant(name: &str, split: SplitChoice) -> (String, TrainingSettings) {
 }
 
 impl ValidationGrid {
-    /// The grid of `graphspn reproduce` / `graphspn validate`, the same size for
-    /// GraphSPN and each MRF (144 candidates):
-    /// - GraphSPN: 2 Star structures × template temperature {1, 0.8, 0.6} ×
-    ///   evidence exponent {1, 2, 3} × decompositions {paper, cover} × {5 of 15,
-    ///   20 of 60} × mixing {posterior, average};
-    /// - each MRF: 4 potential forms × coupling {0.1, 0.2, 0.3, 0.45, 0.6, 1} ×
-    ///   evidence exponent {1, 2, 3}, then 2 BP schedules (at most 200 sweeps);
+    /// The grid of `graphspn reproduce` / `graphspn validate`:
+    /// - GraphSPN (768 candidates): 2 Star structures × template temperature
+    ///   {1, 0.8, 0.6} × evidence exponent {1, 2, 3, 4} × class-prior correction
+    ///   {0, 0.25, 0.5, 0.75} × decompositions {paper, cover} × {5 of 15, 20 of 60} ×
+    ///   mixing {posterior, average};
+    /// - each MRF (112 candidates, then 2 BP schedules at the winner): 4 potential
+    ///   forms × coupling {0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 1} × evidence exponent
+    ///   {1, 2, 3, 4}; BP at most 200 sweeps;
     ///
     /// on 3 maps × NL2, NL4, NL6 × 1 round per validation building,
     /// classification and placeholders.
@@ -289,7 +294,7 @@ impl ValidationGrid {
                 })
                 .collect(),
             graphspn_mixings: Mixing::ALL.to_vec(),
-            graphspn_prior_corrections: vec![0.0, 0.25, 0.5],
+            graphspn_prior_corrections: vec![0.0, 0.25, 0.5, 0.75],
             normalisations: Normalisation::ALL.to_vec(),
             couplings: vec![0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 1.0],
             mrf_exponents: vec![1.0, 2.0, 3.0, 4.0],
