@@ -1,50 +1,158 @@
-//! Small text-emission helpers: scalar literals that round-trip exactly.
+//! Token helpers shared by the emitters: the scalar type, literals that round-trip
+//! exactly, unsuffixed integers, the runtime path, and joining fragments.
+//!
+//! Every emitter builds `proc_macro2` token trees with `quote!`; this module is the
+//! one place that decides how a number is spelled in the generated source. Integers
+//! are unsuffixed (`5`, as array lengths and indices are written by hand); floats are
+//! suffixed literals in Rust's shortest round-trip form, so parsing the generated
+//! source gives back exactly the value the generator computed.
+
+use std::str::FromStr;
+
+use proc_macro2::{Ident, Literal, Span, TokenStream};
+use quote::{ToTokens, TokenStreamExt, quote};
 
 use super::Precision;
 
-/// Path of the runtime's private helper module, as written into generated code.
-pub const P: &str = "::graphspn_runtime::__private::";
+/// The runtime's private helper module, as written into generated code
+/// (`::graphspn_runtime::__private`); append `::item`.
+pub fn rt() -> TokenStream {
+    quote!(::graphspn_runtime::__private)
+}
 
-/// Scalar type name and literal printing for one precision.
+/// An unsuffixed integer literal (`5`, not `5usize`).
+pub fn int(n: usize) -> Literal {
+    Literal::usize_unsuffixed(n)
+}
+
+/// An unsuffixed hexadecimal integer literal (`0x1f`), as decomposition bit sets are
+/// written.
+#[allow(dead_code)] // used by wiring.rs once it emits tokens
+pub fn hex(n: u64) -> Literal {
+    // The spelling of a number, not Rust source: a hexadecimal numeral always lexes
+    // as one literal; should it not, the decimal literal has the same value.
+    // lint: spelling of one numeric literal
+    let text = format!("{n:#x}");
+    Literal::from_str(&text).unwrap_or_else(|_| Literal::u64_unsuffixed(n))
+}
+
+/// Scalar type and float literals of one precision.
 pub struct Lit {
     /// `f32` or `f64`.
     pub t: &'static str,
+    /// The scalar type as an identifier.
+    ty: Ident,
 }
 
 impl Lit {
     /// The literal printer for `precision`.
     pub fn new(precision: Precision) -> Self {
+        let t = match precision {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        };
         Lit {
-            t: match precision {
-                Precision::F32 => "f32",
-                Precision::F64 => "f64",
-            },
+            t,
+            ty: Ident::new(t, Span::call_site()),
         }
     }
 
-    /// A literal for `v` rounded to the scalar type: Rust's shortest round-trip
-    /// `{:?}` form plus a type suffix, so parsing it gives back exactly the same
-    /// value. Infinities become `f32::INFINITY` / `f32::NEG_INFINITY`.
-    pub fn num(&self, v: f64) -> String {
-        if self.t == "f32" {
+    /// The scalar type (`f32` or `f64`).
+    pub fn ty(&self) -> &Ident {
+        &self.ty
+    }
+
+    /// Whether the scalar type is `f32`.
+    pub fn is_f32(&self) -> bool {
+        self.t == "f32"
+    }
+
+    /// A literal for `v` rounded to the scalar type: Rust's shortest round-trip form
+    /// with a type suffix (`0.25f32`, `1e-5f32`), so parsing it gives back exactly the
+    /// same value; negative values are a `-` token before the literal, as the lexer
+    /// reads them. Infinities become `f32::INFINITY` / `f32::NEG_INFINITY` (and NaN
+    /// `f32::NAN`, which validated inputs never produce).
+    pub fn num(&self, v: f64) -> TokenStream {
+        let ty = &self.ty;
+        if self.is_f32() {
             let x = v as f32;
+            if x.is_nan() {
+                return quote!(#ty::NAN);
+            }
             if x.is_infinite() {
                 return if x > 0.0 {
-                    "f32::INFINITY".into()
+                    quote!(#ty::INFINITY)
                 } else {
-                    "f32::NEG_INFINITY".into()
+                    quote!(#ty::NEG_INFINITY)
                 };
             }
-            format!("{x:?}f32")
+            // lint: spelling of one numeric literal
+            let text = format!("{:?}f32", x.abs());
+            let lit = float_literal(&text, || Literal::f32_suffixed(x.abs()));
+            signed(x.is_sign_negative(), lit)
         } else {
+            if v.is_nan() {
+                return quote!(#ty::NAN);
+            }
             if v.is_infinite() {
                 return if v > 0.0 {
-                    "f64::INFINITY".into()
+                    quote!(#ty::INFINITY)
                 } else {
-                    "f64::NEG_INFINITY".into()
+                    quote!(#ty::NEG_INFINITY)
                 };
             }
-            format!("{v:?}f64")
+            // lint: spelling of one numeric literal
+            let text = format!("{:?}f64", v.abs());
+            let lit = float_literal(&text, || Literal::f64_suffixed(v.abs()));
+            signed(v.is_sign_negative(), lit)
         }
     }
+}
+
+/// The literal spelled `text` (a finite float's `{:?}` form plus suffix, which always
+/// lexes as one literal), or `fallback` (the same value in `proc_macro2`'s spelling).
+fn float_literal(text: &str, fallback: impl FnOnce() -> Literal) -> Literal {
+    Literal::from_str(text).unwrap_or_else(|_| fallback())
+}
+
+fn signed(negative: bool, lit: Literal) -> TokenStream {
+    if negative {
+        quote!(- #lit)
+    } else {
+        lit.into_token_stream()
+    }
+}
+
+/// `items` separated by `sep` (e.g. `a * b * c` with `quote!(*)`).
+pub fn join<I>(items: I, sep: &TokenStream) -> TokenStream
+where
+    I: IntoIterator,
+    I::Item: ToTokens,
+{
+    let mut out = TokenStream::new();
+    for (i, item) in items.into_iter().enumerate() {
+        if i > 0 {
+            out.extend(sep.clone());
+        }
+        item.to_tokens(&mut out);
+    }
+    out
+}
+
+/// `[a, b, c]`: an array expression of `items`.
+pub fn array<I>(items: I) -> TokenStream
+where
+    I: IntoIterator,
+    I::Item: ToTokens,
+{
+    let inner = join(items, &quote!(,));
+    quote!([#inner])
+}
+
+/// Integer literals `items` as an array expression `[1, 2, 3]`.
+#[allow(dead_code)] // used by wiring.rs once it emits tokens
+pub fn int_array<I: IntoIterator<Item = usize>>(items: I) -> TokenStream {
+    let mut inner = TokenStream::new();
+    inner.append_separated(items.into_iter().map(int), quote!(,));
+    quote!([#inner])
 }

@@ -33,7 +33,8 @@ use crate::learn::Model;
 use crate::map::TopoMap;
 
 use super::analysis::{Numerics, numerics, unique_components};
-use super::emit::{Lit, P};
+use super::emit::Lit;
+const P: &str = "::graphspn_runtime::__private::";
 use super::kernels;
 use super::sparse::{Counts, SparseCode};
 use super::template::TemplateCode;
@@ -173,11 +174,15 @@ pub fn module(
                     prefix: prefix.clone(),
                     plan,
                 };
+                let mut emitted = |(tokens, ops): (proc_macro2::TokenStream, usize)| {
+                    let _ = writeln!(fns, "{tokens}");
+                    ops
+                };
                 let counts = Counts {
-                    fwd: code.fwd(&l, &mut fns),
-                    post: code.post(&l, &mut fns),
-                    max: code.max(&l, &mut fns),
-                    mpe: code.mpe(&l, &mut fns),
+                    fwd: emitted(code.fwd(&l)),
+                    post: emitted(code.post(&l)),
+                    max: emitted(code.max(&l)),
+                    mpe: emitted(code.mpe(&l)),
                 };
                 let sums: usize = plan.blocks.iter().map(|b| b.sums.len()).sum();
                 // Block values and adjoints, variable adjoints, MPE arguments and
@@ -203,14 +208,15 @@ pub fn module(
                     numerics: num,
                     classes: c,
                 };
-                code.statics(&l, &mut fns);
-                code.fwd(&l, &mut fns);
-                code.post(&l, &mut fns);
-                code.mpe(&l, &mut fns);
-                let _ = writeln!(
-                    fns,
-                    "#[inline(never)] fn {prefix}_max(x: &[[{t}; {c}]; {vars}]) -> {t} {{ let mut lab = [0u16; {vars}]; {prefix}_mpe(x, &mut lab) }}"
-                );
+                for tokens in [
+                    code.statics(&l),
+                    code.fwd(&l),
+                    code.post(&l),
+                    code.mpe(&l),
+                    code.max(&l),
+                ] {
+                    let _ = writeln!(fns, "{tokens}");
+                }
                 let edges: usize = spn
                     .nodes
                     .iter()
