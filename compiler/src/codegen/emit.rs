@@ -10,7 +10,7 @@
 use std::str::FromStr;
 
 use proc_macro2::{Ident, Literal, Span, TokenStream};
-use quote::{ToTokens, TokenStreamExt, quote};
+use quote::{ToTokens, TokenStreamExt, format_ident, quote};
 
 use super::Precision;
 
@@ -27,7 +27,6 @@ pub fn int(n: usize) -> Literal {
 
 /// An unsuffixed hexadecimal integer literal (`0x1f`), as decomposition bit sets are
 /// written.
-#[allow(dead_code)] // used by wiring.rs once it emits tokens
 pub fn hex(n: u64) -> Literal {
     // The spelling of a number, not Rust source: a hexadecimal numeral always lexes
     // as one literal; should it not, the decimal literal has the same value.
@@ -42,6 +41,7 @@ pub struct Lit {
     pub t: &'static str,
     /// The scalar type as an identifier.
     ty: Ident,
+    precision: Precision,
 }
 
 impl Lit {
@@ -54,7 +54,21 @@ impl Lit {
         Lit {
             t,
             ty: Ident::new(t, Span::call_site()),
+            precision,
         }
+    }
+
+    /// The precision this printer was made for.
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    /// A runtime helper with the scalar type's suffix: `helper("sum")` is
+    /// `::graphspn_runtime::__private::sum_f32`.
+    pub fn helper(&self, name: &str) -> TokenStream {
+        let rt = rt();
+        let f = format_ident!("{}_{}", name, self.t);
+        quote!(#rt::#f)
     }
 
     /// The scalar type (`f32` or `f64`).
@@ -150,7 +164,6 @@ where
 }
 
 /// Integer literals `items` as an array expression `[1, 2, 3]`.
-#[allow(dead_code)] // used by wiring.rs once it emits tokens
 pub fn int_array<I: IntoIterator<Item = usize>>(items: I) -> TokenStream {
     let mut inner = TokenStream::new();
     inner.append_separated(items.into_iter().map(int), quote!(,));

@@ -15,7 +15,7 @@ use quote::{ToTokens, format_ident, quote};
 use crate::spn::{Node, Spn};
 
 use super::analysis::Numerics;
-use super::emit::{Lit, array, int, join, rt};
+use super::emit::{Lit, array, int, join};
 
 /// Sums with more children than this use a `static` weight array and `dot_*`.
 pub const DENSE_MIN: usize = 4;
@@ -116,16 +116,9 @@ impl TemplateCode<'_> {
         format_ident!("W_{}_{}", self.prefix.to_uppercase(), i)
     }
 
-    /// A runtime helper with the scalar type's suffix, e.g. `sum_f32`.
-    fn helper(&self, l: &Lit, name: &str) -> TokenStream {
-        let rt = rt();
-        let f = format_ident!("{}_{}", name, l.t);
-        quote!(#rt::#f)
-    }
-
     /// `terms` summed (`a + b`, or `sum_f32([..])` when long; `0.0` when empty).
     fn sum_of(&self, l: &Lit, terms: Vec<TokenStream>) -> (TokenStream, bool) {
-        join_terms(terms, quote!(+), self.helper(l, "sum"), quote!(0.0))
+        join_terms(terms, quote!(+), l.helper("sum"), quote!(0.0))
     }
 
     /// Statics (weight arrays) shared by this template's functions.
@@ -154,7 +147,7 @@ impl TemplateCode<'_> {
         let ops = ops(self.spn);
         let node = |c: usize| format_ident!("n{c}");
         if !self.linear() {
-            let ln_rows = self.helper(l, "ln_rows");
+            let ln_rows = l.helper("ln_rows");
             body.extend(quote!(let lx = #ln_rows(x);));
         }
         for (&i, op) in ops.iter() {
@@ -171,7 +164,7 @@ impl TemplateCode<'_> {
                 Op::Product(ch) => {
                     let terms = ch.iter().map(|&c| node(c).into_token_stream()).collect();
                     let (e, _) = if self.linear() {
-                        join_terms(terms, quote!(*), self.helper(l, "prod"), quote!(1.0))
+                        join_terms(terms, quote!(*), l.helper("prod"), quote!(1.0))
                     } else {
                         self.sum_of(l, terms)
                     };
@@ -204,17 +197,14 @@ impl TemplateCode<'_> {
                             quote!(let #ni: #t = #z;)
                         }
                     } else if max {
-                        let (f, ai, terms) = (
-                            self.helper(l, "argmax"),
-                            format_ident!("a{i}"),
-                            array(terms),
-                        );
+                        let (f, ai, terms) =
+                            (l.helper("argmax"), format_ident!("a{i}"), array(terms));
                         quote!(let (#ni, #ai) = #f(#terms);)
                     } else if !self.linear() {
-                        let (f, terms) = (self.helper(l, "lse"), array(terms));
+                        let (f, terms) = (l.helper("lse"), array(terms));
                         quote!(let #ni = #f(#terms);)
                     } else if ch.len() > DENSE_MIN {
-                        let (f, w) = (self.helper(l, "dot"), self.weights(i));
+                        let (f, w) = (l.helper("dot"), self.weights(i));
                         let vs = array(ch.iter().map(|&(c, _)| node(c)));
                         quote!(let #ni = #f(&#w, &#vs);)
                     } else {
@@ -286,7 +276,7 @@ impl TemplateCode<'_> {
                     for (j, &(c, w)) in ch.iter().enumerate() {
                         let term = if !self.linear() {
                             let (flow, w, nc, ni) =
-                                (self.helper(l, "flow"), l.num(w.ln()), node(c), node(i));
+                                (l.helper("flow"), l.num(w.ln()), node(c), node(i));
                             quote!(#flow(#gi, #w + #nc, #ni))
                         } else if ch.len() > DENSE_MIN {
                             let (ws, j) = (self.weights(i), int(j));
