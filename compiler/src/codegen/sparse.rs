@@ -412,6 +412,20 @@ impl SparseCode<'_> {
                 body.extend(quote!(#bb[#mi] = r.max(0.0);));
             }
         }
+        self.backtrack(&mut body);
+        let c = int(p.classes);
+        let (name, n, root) = (self.ident("mpe"), int(p.n), self.root());
+        (
+            quote!(#[inline(never)] fn #name(x: &[[#t; #c]; #n], lab: &mut [u16; #n]) -> #t { #body #root }),
+            ops,
+        )
+    }
+
+    /// MPE backtracking: from the root, mark the selected tuple of every selected
+    /// sum, then write each variable's selected class into `lab`.
+    fn backtrack(&self, body: &mut TokenStream) {
+        let p = self.plan;
+        let rt = rt();
         let c = int(p.classes);
         for v in 0..p.n {
             let sx = format_ident!("sx{v}");
@@ -447,10 +461,5 @@ impl SparseCode<'_> {
             let (sx, vi) = (format_ident!("sx{v}"), int(v));
             body.extend(quote!(#rt::sel_label(&#sx, &mut lab[#vi]);));
         }
-        let (name, n, root) = (self.ident("mpe"), int(p.n), self.root());
-        (
-            quote!(#[inline(never)] fn #name(x: &[[#t; #c]; #n], lab: &mut [u16; #n]) -> #t { #body #root }),
-            ops,
-        )
     }
 }

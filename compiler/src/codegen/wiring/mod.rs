@@ -206,6 +206,7 @@ fn plan_templates(model: &Model, uniques: &[Unique], cx: &Context) -> Vec<Tpl> {
         if members.is_empty() {
             continue;
         }
+        // lint: the prefix of the template's identifiers (format_ident! at each use)
         let prefix = format!("t{k}_{}", sanitize(&model.templates[k].name));
         let plan = kernels::plan(spn, cx.c);
         let num = numerics(spn, cx.l.precision(), plan.as_ref());
