@@ -88,52 +88,37 @@ impl Lit {
     /// `f32::NAN`, which validated inputs never produce).
     pub fn num(&self, v: f64) -> TokenStream {
         let ty = &self.ty;
-        if self.is_f32() {
-            let x = v as f32;
-            if x.is_nan() {
-                return quote!(#ty::NAN);
-            }
-            if x.is_infinite() {
-                return if x > 0.0 {
-                    quote!(#ty::INFINITY)
-                } else {
-                    quote!(#ty::NEG_INFINITY)
-                };
-            }
-            // lint: spelling of one numeric literal
-            let text = format!("{:?}f32", x.abs());
-            let lit = float_literal(&text, || Literal::f32_suffixed(x.abs()));
-            signed(x.is_sign_negative(), lit)
-        } else {
-            if v.is_nan() {
-                return quote!(#ty::NAN);
-            }
-            if v.is_infinite() {
-                return if v > 0.0 {
-                    quote!(#ty::INFINITY)
-                } else {
-                    quote!(#ty::NEG_INFINITY)
-                };
-            }
-            // lint: spelling of one numeric literal
-            let text = format!("{:?}f64", v.abs());
-            let lit = float_literal(&text, || Literal::f64_suffixed(v.abs()));
-            signed(v.is_sign_negative(), lit)
+        let f32 = self.is_f32();
+        let x = if f32 { f64::from(v as f32) } else { v };
+        if x.is_nan() {
+            return quote!(#ty::NAN);
         }
-    }
-}
-
-/// The literal spelled `text` (a finite float's `{:?}` form plus suffix, which always
-/// lexes as one literal), or `fallback` (the same value in `proc_macro2`'s spelling).
-fn float_literal(text: &str, fallback: impl FnOnce() -> Literal) -> Literal {
-    Literal::from_str(text).unwrap_or_else(|_| fallback())
-}
-
-fn signed(negative: bool, lit: Literal) -> TokenStream {
-    if negative {
-        quote!(- #lit)
-    } else {
-        lit.into_token_stream()
+        if x.is_infinite() {
+            return if x > 0.0 {
+                quote!(#ty::INFINITY)
+            } else {
+                quote!(#ty::NEG_INFINITY)
+            };
+        }
+        // The shortest round-trip digits of the value in its own type.
+        // lint: spelling of one numeric literal
+        let text = if f32 {
+            format!("{:?}f32", (v as f32).abs())
+        } else {
+            format!("{:?}f64", v.abs())
+        };
+        let lit = Literal::from_str(&text).unwrap_or_else(|_| {
+            if f32 {
+                Literal::f32_suffixed((v as f32).abs())
+            } else {
+                Literal::f64_suffixed(v.abs())
+            }
+        });
+        if x.is_sign_negative() {
+            quote!(- #lit)
+        } else {
+            lit.into_token_stream()
+        }
     }
 }
 

@@ -90,26 +90,26 @@ impl SparseCode<'_> {
         format_ident!("{}_{}", self.prefix, suffix)
     }
 
-    /// Input vector `g`: a variable's row `x[g]` or block `b{g − n}`.
-    fn vec_name(&self, g: usize) -> TokenStream {
+    /// Vector `g` of a sweep: a variable's `vars[g]` or block `{blocks}{g − n}`
+    /// (values `x` / `b`, adjoints `gx` / `g`).
+    fn vector(&self, g: usize, vars: &str, blocks: &str) -> TokenStream {
         if g < self.plan.n {
-            let g = int(g);
-            quote!(x[#g])
+            let (vars, g) = (format_ident!("{vars}"), int(g));
+            quote!(#vars[#g])
         } else {
-            let b = format_ident!("b{}", g - self.plan.n);
+            let b = format_ident!("{blocks}{}", g - self.plan.n);
             quote!(#b)
         }
     }
 
+    /// Input vector `g`: a variable's row `x[g]` or block `b{g − n}`.
+    fn vec_name(&self, g: usize) -> TokenStream {
+        self.vector(g, "x", "b")
+    }
+
     /// The adjoint vector of input `g`: `gx[g]` or `g{g − n}`.
     fn adjoint_name(&self, g: usize) -> TokenStream {
-        if g < self.plan.n {
-            let g = int(g);
-            quote!(gx[#g])
-        } else {
-            let b = format_ident!("g{}", g - self.plan.n);
-            quote!(#b)
-        }
+        self.vector(g, "gx", "g")
     }
 
     fn elem(&self, g: usize, i: usize) -> TokenStream {

@@ -2,10 +2,33 @@
 //! (`marginals`), MPE, the (labelled) log-likelihood and the `CompiledMap` impl.
 
 use proc_macro2::TokenStream;
-use quote::quote;
+use quote::{format_ident, quote};
 
 use super::super::emit::rt;
 use super::{Context, Tpl};
+
+/// `pub fn <name>(<params>) -> Result<T, EvidenceError>`, documented by `docs` (one
+/// string per line): validates the evidence `e` (and runs `more`), then calls
+/// `<name>_unchecked(<args>)`.
+fn checked(
+    cx: &Context,
+    docs: &[&str],
+    name: &str,
+    params: TokenStream,
+    args: TokenStream,
+    more: TokenStream,
+) -> TokenStream {
+    let (t, check) = (cx.l.ty(), cx.l.helper("check"));
+    let (f, unchecked) = (format_ident!("{name}"), format_ident!("{name}_unchecked"));
+    quote! {
+        #(#[doc = #docs])*
+        pub fn #f(#params) -> Result<#t, ::graphspn_runtime::EvidenceError> {
+            #check(e, &PLACE_IDS)?;
+            #more
+            #unchecked(#args)
+        }
+    }
+}
 
 /// One driver call per template, `call(table)` with the template's `static` table.
 fn per_template(tpls: &[Tpl], call: impl Fn(&Tpl) -> TokenStream) -> TokenStream {
@@ -50,7 +73,29 @@ pub(super) fn stateless_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
 /// `log_likelihood` and `labelled_log_likelihood` (value pass only).
 fn likelihood_api(cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
-    let check = cx.l.helper("check");
+    let log_likelihood = checked(
+        cx,
+        &[
+            " Natural log of the likelihood `S(α)` of the evidence (relative error about 1e-6 in",
+            " `f32`: one rounding per multiply-add, products kept with exact exponents).",
+        ],
+        "log_likelihood",
+        quote!(e: &Evidence),
+        quote!(e),
+        TokenStream::new(),
+    );
+    let labelled = checked(
+        cx,
+        &[
+            " Natural log of the likelihood of the evidence with every labelled place restricted",
+            " to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are",
+            " rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.",
+        ],
+        "labelled_log_likelihood",
+        quote!(labels: &Labels, e: &Evidence),
+        quote!(labels, e),
+        quote!(#rt::check_labels(labels, NUM_CLASSES)?;),
+    );
     quote! {
         /// Natural log of the likelihood `S(α)` of the evidence, without validating it.
         /// Invalid evidence gives unspecified numbers (never a panic).
@@ -58,12 +103,7 @@ fn likelihood_api(cx: &Context) -> TokenStream {
             labelled_log_likelihood_unchecked(&ALL_UNKNOWN, e)
         }
 
-        /// Natural log of the likelihood `S(α)` of the evidence (relative error about 1e-6 in
-        /// `f32`: one rounding per multiply-add, products kept with exact exponents).
-        pub fn log_likelihood(e: &Evidence) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            #check(e, &PLACE_IDS)?;
-            log_likelihood_unchecked(e)
-        }
+        #log_likelihood
 
         /// Like [`labelled_log_likelihood`], without validating evidence or labels.
         pub fn labelled_log_likelihood_unchecked(labels: &Labels, e: &Evidence) -> Result<#t, ::graphspn_runtime::EvidenceError> {
@@ -71,21 +111,25 @@ fn likelihood_api(cx: &Context) -> TokenStream {
             finish(&acc, #rt::log_scale(e, labels)).map(|(l, _)| l)
         }
 
-        /// Natural log of the likelihood of the evidence with every labelled place restricted
-        /// to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are
-        /// rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.
-        pub fn labelled_log_likelihood(labels: &Labels, e: &Evidence) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            #check(e, &PLACE_IDS)?;
-            #rt::check_labels(labels, NUM_CLASSES)?;
-            labelled_log_likelihood_unchecked(labels, e)
-        }
+        #labelled
     }
 }
 
 /// `marginals`: the value pass, then every component's weighted local posteriors.
 fn posterior_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
-    let check = cx.l.helper("check");
+    let checked = checked(
+        cx,
+        &[
+            " Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error",
+            " about 1e-6 in `f32`) and returns the log-likelihood `ln S(α)`. Two passes over the",
+            " components (values, then posteriors); [`State`] keeps the posteriors instead.",
+        ],
+        "marginals",
+        quote!(e: &Evidence, out: &mut Marginals),
+        quote!(e, out),
+        TokenStream::new(),
+    );
     let calls = per_template(tpls, |tp| {
         let stat = &tp.stat;
         quote!(#rt::posterior_pass(&#stat, e, &w, out);)
@@ -102,13 +146,7 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
             Ok(l)
         }
 
-        /// Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error
-        /// about 1e-6 in `f32`) and returns the log-likelihood `ln S(α)`. Two passes over the
-        /// components (values, then posteriors); [`State`] keeps the posteriors instead.
-        pub fn marginals(e: &Evidence, out: &mut Marginals) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            #check(e, &PLACE_IDS)?;
-            marginals_unchecked(e, out)
-        }
+        #checked
     }
 }
 
@@ -116,7 +154,18 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
 /// components.
 fn mpe(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
-    let check = cx.l.helper("check");
+    let checked = checked(
+        cx,
+        &[
+            " Writes the max-product (MPE) labelling into `labels` and returns its natural-log",
+            " max-product value `max_d ln((1/D) Π_k maxprod T_k)`, ties broken towards the lowest",
+            " decomposition.",
+        ],
+        "mpe",
+        quote!(e: &Evidence, labels: &mut Labels),
+        quote!(e, labels),
+        TokenStream::new(),
+    );
     let calls = per_template(tpls, |tp| {
         let stat = &tp.stat;
         quote!(#rt::mpe_labels(&#stat, e, d, labels);)
@@ -139,13 +188,7 @@ fn mpe(tpls: &[Tpl], cx: &Context) -> TokenStream {
             Ok(v)
         }
 
-        /// Writes the max-product (MPE) labelling into `labels` and returns its natural-log
-        /// max-product value `max_d ln((1/D) Π_k maxprod T_k)`, ties broken towards the lowest
-        /// decomposition.
-        pub fn mpe(e: &Evidence, labels: &mut Labels) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            #check(e, &PLACE_IDS)?;
-            mpe_unchecked(e, labels)
-        }
+        #checked
     }
 }
 
