@@ -101,17 +101,15 @@ impl Lit {
             };
         }
         // The shortest round-trip digits of the value in its own type.
+        let (abs32, abs64) = ((v as f32).abs(), v.abs());
+        let abs: &dyn std::fmt::Debug = if f32 { &abs32 } else { &abs64 };
         // lint: spelling of one numeric literal
-        let text = if f32 {
-            format!("{:?}f32", (v as f32).abs())
-        } else {
-            format!("{:?}f64", v.abs())
-        };
+        let text = format!("{abs:?}{}", self.t);
         let lit = Literal::from_str(&text).unwrap_or_else(|_| {
             if f32 {
-                Literal::f32_suffixed((v as f32).abs())
+                Literal::f32_suffixed(abs32)
             } else {
-                Literal::f64_suffixed(v.abs())
+                Literal::f64_suffixed(abs64)
             }
         });
         if x.is_sign_negative() {
