@@ -8,10 +8,11 @@
 
 use std::path::{Path, PathBuf};
 
-fn codegen_files() -> Vec<PathBuf> {
+/// The `.rs` files below `dir`, sorted, with their text.
+fn sources(dir: &Path) -> Vec<(PathBuf, String)> {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
         let mut entries: Vec<_> = std::fs::read_dir(dir)
-            .expect("codegen folder")
+            .expect("source folder")
             .map(|e| e.expect("entry").path())
             .collect();
         entries.sort();
@@ -23,12 +24,21 @@ fn codegen_files() -> Vec<PathBuf> {
             }
         }
     }
-    let mut out = vec![];
-    walk(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("src/codegen"),
-        &mut out,
-    );
-    assert!(out.len() >= 8, "codegen sources not found: {out:?}");
+    let mut paths = vec![];
+    walk(dir, &mut paths);
+    paths
+        .into_iter()
+        .map(|p| {
+            let text = std::fs::read_to_string(&p).expect("read");
+            (p, text)
+        })
+        .collect()
+}
+
+/// The generator's sources.
+fn codegen_sources() -> Vec<(PathBuf, String)> {
+    let out = sources(&Path::new(env!("CARGO_MANIFEST_DIR")).join("src/codegen"));
+    assert!(out.len() >= 8, "codegen sources not found");
     out
 }
 
@@ -44,8 +54,7 @@ const ERROR_MESSAGES: [&str; 3] = ["what: format!(", "BadOption(format!(", "Inte
 #[test]
 fn no_rust_code_assembled_as_strings() {
     let mut bad = vec![];
-    for path in codegen_files() {
-        let text = std::fs::read_to_string(&path).expect("read");
+    for (path, text) in codegen_sources() {
         let lines: Vec<&str> = text.lines().collect();
         for (i, line) in lines.iter().enumerate() {
             let code = line.split("//").next().unwrap_or("");
@@ -88,8 +97,7 @@ fn emitters_use_quote() {
 #[test]
 fn no_function_over_100_lines() {
     let mut long = vec![];
-    for path in codegen_files() {
-        let text = std::fs::read_to_string(&path).expect("read");
+    for (path, text) in codegen_sources() {
         let lines: Vec<&str> = text.lines().collect();
         for (i, line) in lines.iter().enumerate() {
             let t = line.trim_start();
@@ -117,4 +125,32 @@ fn no_function_over_100_lines() {
         "functions over 100 lines:\n{}",
         long.join("\n")
     );
+}
+
+/// A `cargo machete`-style check of this crate: every `[dependencies]` entry of
+/// `compiler/Cargo.toml` is named in `compiler/src` (`name::` or `use name`).
+#[test]
+fn no_unused_dependency() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).expect("Cargo.toml");
+    let deps: Vec<String> = manifest
+        .split("\n[")
+        .find(|s| s.starts_with("dependencies]"))
+        .expect("[dependencies]")
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(['=', '.']).next())
+        .map(|n| n.trim().replace('-', "_"))
+        .filter(|n| !n.is_empty() && !n.starts_with('#'))
+        .collect();
+    assert!(deps.iter().any(|d| d == "quote"), "dependencies: {deps:?}");
+    let sources: String = sources(&root.join("src"))
+        .into_iter()
+        .map(|(_, text)| text)
+        .collect();
+    let unused: Vec<&String> = deps
+        .iter()
+        .filter(|d| !sources.contains(&format!("{d}::")) && !sources.contains(&format!("use {d}")))
+        .collect();
+    assert!(unused.is_empty(), "unused dependencies: {unused:?}");
 }
