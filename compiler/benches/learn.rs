@@ -11,6 +11,10 @@
 //! the real Freiburg + Saarbrucken maps give at most ~620 (training cost grows
 //! with the number of distinct tuples, not with the number of samples).
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use common::permutations;
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -62,22 +66,6 @@ fn samples(n_vars: usize, m: usize, seed: u64) -> Vec<Vec<ClassId>> {
             s
         })
         .collect()
-}
-
-fn permutations(items: &[usize]) -> Vec<Vec<usize>> {
-    if items.len() <= 1 {
-        return vec![items.to_vec()];
-    }
-    let mut out = Vec::new();
-    for i in 0..items.len() {
-        let mut rest = items.to_vec();
-        let x = rest.remove(i);
-        for mut p in permutations(&rest) {
-            p.insert(0, x);
-            out.push(p);
-        }
-    }
-    out
 }
 
 fn templates() -> Vec<(&'static str, usize, usize, Vec<Vec<usize>>)> {

@@ -5,6 +5,9 @@
 //! `case_seed` that fully determines the SPN, evidence and fixed classes, and every
 //! failure message prints it, so `check_case(case_seed, selective)` replays it.
 
+mod common;
+
+use common::all_assignments;
 use graphspn_compiler::interpreter::{BATCH, Evaluator, Evidence, InferenceError};
 use graphspn_compiler::runtime::EvidenceError;
 use graphspn_compiler::spn::{Node, RandomSpnParams, Spn, random_spn};
@@ -62,23 +65,6 @@ fn lse(xs: &[f64]) -> f64 {
         return m;
     }
     m + xs.iter().map(|x| (x - m).exp()).sum::<f64>().ln()
-}
-
-fn all_assignments(classes: &[u32]) -> Vec<Vec<u32>> {
-    let mut out = vec![vec![]];
-    for &k in classes {
-        out = out
-            .into_iter()
-            .flat_map(|p| {
-                (0..k).map(move |c| {
-                    let mut q = p.clone();
-                    q.push(c);
-                    q
-                })
-            })
-            .collect();
-    }
-    out
 }
 
 /// Log-values of every induced tree under `node` whose value is not 0 (a single `-∞`

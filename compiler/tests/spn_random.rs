@@ -1,25 +1,11 @@
 //! The random SPN generator: valid for many seeds and parameters, deterministic,
 //! selective when asked, and actually produces DAG sharing and exact-zero weights.
 
+mod common;
+
+use common::all_assignments;
 use graphspn_compiler::spn::random::{RandomSpnParams, layered_spn, random_spn};
 use graphspn_compiler::spn::{Node, Spn};
-
-fn all_assignments(classes: &[u32]) -> Vec<Vec<u32>> {
-    let mut out = vec![vec![]];
-    for &k in classes {
-        out = out
-            .into_iter()
-            .flat_map(|p| {
-                (0..k).map(move |c| {
-                    let mut q = p.clone();
-                    q.push(c);
-                    q
-                })
-            })
-            .collect();
-    }
-    out
-}
 
 /// For one full assignment: does each node's support contain it (weights ignored)?
 fn supports(spn: &Spn, x: &[u32]) -> Vec<bool> {

@@ -186,7 +186,7 @@ fn normalised(spn: &Spn) -> bool {
 /// Decides linear or log space for one template SPN (see the module docs).
 ///
 /// With the template's block structure (`plan`, see `kernels.rs`) the lower bounds come
-/// from [`plan_lower_bounds`] without enumerating assignments (for the trained Star
+/// from `plan_lower_bounds` without enumerating assignments (for the trained Star
 /// it is within 15% of the enumerated minimum); otherwise every one-hot assignment is
 /// evaluated node by node, up to [`MAX_ASSIGNMENTS`] and [`MAX_WORK`].
 pub fn numerics(spn: &Spn, precision: Precision, plan: Option<&Plan>) -> Numerics {

@@ -468,6 +468,7 @@ impl Builder {
                     )
                 })?,
         };
+        // lint: a file name
         Ok(dir.join(format!("{name}.rs")))
     }
 

@@ -1,50 +1,154 @@
-//! Small text-emission helpers: scalar literals that round-trip exactly.
+//! Token helpers shared by the emitters: the scalar type, literals that round-trip
+//! exactly, unsuffixed integers, the runtime path, and joining fragments.
+//!
+//! Every emitter builds `proc_macro2` token trees with `quote!`; this module is the
+//! one place that decides how a number is spelled in the generated source. Integers
+//! are unsuffixed (`5`, as array lengths and indices are written by hand); floats are
+//! suffixed literals in Rust's shortest round-trip form, so parsing the generated
+//! source gives back exactly the value the generator computed.
+
+use std::str::FromStr;
+
+use proc_macro2::{Ident, Literal, Span, TokenStream};
+use quote::{ToTokens, TokenStreamExt, format_ident, quote};
 
 use super::Precision;
 
-/// Path of the runtime's private helper module, as written into generated code.
-pub const P: &str = "::graphspn_runtime::__private::";
+/// The runtime's private helper module, as written into generated code
+/// (`::graphspn_runtime::__private`); append `::item`.
+pub fn rt() -> TokenStream {
+    quote!(::graphspn_runtime::__private)
+}
 
-/// Scalar type name and literal printing for one precision.
+/// An unsuffixed integer literal (`5`, not `5usize`).
+pub fn int(n: usize) -> Literal {
+    Literal::usize_unsuffixed(n)
+}
+
+/// An unsuffixed hexadecimal integer literal (`0x1f`), as decomposition bit sets are
+/// written.
+pub fn hex(n: u64) -> Literal {
+    // The spelling of a number, not Rust source: a hexadecimal numeral always lexes
+    // as one literal; should it not, the decimal literal has the same value.
+    // lint: spelling of one numeric literal
+    let text = format!("{n:#x}");
+    Literal::from_str(&text).unwrap_or_else(|_| Literal::u64_unsuffixed(n))
+}
+
+/// Scalar type and float literals of one precision.
 pub struct Lit {
     /// `f32` or `f64`.
     pub t: &'static str,
+    /// The scalar type as an identifier.
+    ty: Ident,
+    precision: Precision,
 }
 
 impl Lit {
     /// The literal printer for `precision`.
     pub fn new(precision: Precision) -> Self {
+        let t = match precision {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        };
         Lit {
-            t: match precision {
-                Precision::F32 => "f32",
-                Precision::F64 => "f64",
-            },
+            t,
+            ty: Ident::new(t, Span::call_site()),
+            precision,
         }
     }
 
-    /// A literal for `v` rounded to the scalar type: Rust's shortest round-trip
-    /// `{:?}` form plus a type suffix, so parsing it gives back exactly the same
-    /// value. Infinities become `f32::INFINITY` / `f32::NEG_INFINITY`.
-    pub fn num(&self, v: f64) -> String {
-        if self.t == "f32" {
-            let x = v as f32;
-            if x.is_infinite() {
-                return if x > 0.0 {
-                    "f32::INFINITY".into()
-                } else {
-                    "f32::NEG_INFINITY".into()
-                };
+    /// The precision this printer was made for.
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    /// A runtime helper with the scalar type's suffix: `helper("sum")` is
+    /// `::graphspn_runtime::__private::sum_f32`.
+    pub fn helper(&self, name: &str) -> TokenStream {
+        let rt = rt();
+        let f = format_ident!("{}_{}", name, self.t);
+        quote!(#rt::#f)
+    }
+
+    /// The scalar type (`f32` or `f64`).
+    pub fn ty(&self) -> &Ident {
+        &self.ty
+    }
+
+    /// Whether the scalar type is `f32`.
+    pub fn is_f32(&self) -> bool {
+        self.t == "f32"
+    }
+
+    /// A literal for `v` rounded to the scalar type: Rust's shortest round-trip form
+    /// with a type suffix (`0.25f32`, `1e-5f32`), so parsing it gives back exactly the
+    /// same value; negative values are a `-` token before the literal, as the lexer
+    /// reads them. Infinities become `f32::INFINITY` / `f32::NEG_INFINITY` (and NaN
+    /// `f32::NAN`, which validated inputs never produce).
+    pub fn num(&self, v: f64) -> TokenStream {
+        let ty = &self.ty;
+        let f32 = self.is_f32();
+        let x = if f32 { f64::from(v as f32) } else { v };
+        if x.is_nan() {
+            return quote!(#ty::NAN);
+        }
+        if x.is_infinite() {
+            return if x > 0.0 {
+                quote!(#ty::INFINITY)
+            } else {
+                quote!(#ty::NEG_INFINITY)
+            };
+        }
+        // The shortest round-trip digits of the value in its own type.
+        let (abs32, abs64) = ((v as f32).abs(), v.abs());
+        let abs: &dyn std::fmt::Debug = if f32 { &abs32 } else { &abs64 };
+        // lint: spelling of one numeric literal
+        let text = format!("{abs:?}{}", self.t);
+        let lit = Literal::from_str(&text).unwrap_or_else(|_| {
+            if f32 {
+                Literal::f32_suffixed(abs32)
+            } else {
+                Literal::f64_suffixed(abs64)
             }
-            format!("{x:?}f32")
+        });
+        if x.is_sign_negative() {
+            quote!(- #lit)
         } else {
-            if v.is_infinite() {
-                return if v > 0.0 {
-                    "f64::INFINITY".into()
-                } else {
-                    "f64::NEG_INFINITY".into()
-                };
-            }
-            format!("{v:?}f64")
+            lit.into_token_stream()
         }
     }
+}
+
+/// `items` separated by `sep` (e.g. `a * b * c` with `quote!(*)`).
+pub fn join<I>(items: I, sep: &TokenStream) -> TokenStream
+where
+    I: IntoIterator,
+    I::Item: ToTokens,
+{
+    let mut out = TokenStream::new();
+    for (i, item) in items.into_iter().enumerate() {
+        if i > 0 {
+            out.extend(sep.clone());
+        }
+        item.to_tokens(&mut out);
+    }
+    out
+}
+
+/// `[a, b, c]`: an array expression of `items`.
+pub fn array<I>(items: I) -> TokenStream
+where
+    I: IntoIterator,
+    I::Item: ToTokens,
+{
+    let inner = join(items, &quote!(,));
+    quote!([#inner])
+}
+
+/// Integer literals `items` as an array expression `[1, 2, 3]`.
+pub fn int_array<I: IntoIterator<Item = usize>>(items: I) -> TokenStream {
+    let mut inner = TokenStream::new();
+    inner.append_separated(items.into_iter().map(int), quote!(,));
+    quote!([#inner])
 }

@@ -70,6 +70,43 @@ pub struct Plan {
 pub fn plan(spn: &Spn, classes: usize) -> Option<Plan> {
     let n = spn.num_vars();
     let nodes = &spn.nodes;
+    let reach = reachable(spn)?;
+    // Group sums by child list; blocks ordered by their first sum (topological).
+    let mut by_children: BTreeMap<&[NodeId], Vec<NodeId>> = BTreeMap::new();
+    for (i, node) in nodes.iter().enumerate() {
+        if let (true, Node::Sum { children, .. }) = (reach[i], node) {
+            by_children
+                .entry(children.as_slice())
+                .or_default()
+                .push(i as NodeId);
+        }
+    }
+    let mut groups: Vec<Vec<NodeId>> = by_children.into_values().collect();
+    groups.sort_by_key(|g| g[0]);
+    let mut slot: BTreeMap<NodeId, (usize, usize)> = BTreeMap::new();
+    for (b, g) in groups.iter().enumerate() {
+        for (m, &s) in g.iter().enumerate() {
+            slot.insert(s, (n + b, m));
+        }
+    }
+    let mut blocks: Vec<Block> = Vec::with_capacity(groups.len());
+    for sums in &groups {
+        let block = block(spn, classes, &slot, &blocks, sums)?;
+        blocks.push(block);
+    }
+    let root = slot.get(&spn.root)?;
+    Some(Plan {
+        n,
+        classes,
+        blocks,
+        root: (root.0 - n, root.1),
+    })
+}
+
+/// The reachable nodes of `spn`, or `None` when the root is not a sum or a product
+/// has a product child.
+fn reachable(spn: &Spn) -> Option<Vec<bool>> {
+    let nodes = &spn.nodes;
     let root = spn.root as usize;
     if !matches!(nodes.get(root)?, Node::Sum { .. }) {
         return None;
@@ -93,24 +130,20 @@ pub fn plan(spn: &Spn, classes: usize) -> Option<Plan> {
             }
         }
     }
-    // Group sums by child list; blocks ordered by their first sum (topological).
-    let mut by_children: BTreeMap<&[NodeId], Vec<NodeId>> = BTreeMap::new();
-    for (i, node) in nodes.iter().enumerate() {
-        if let (true, Node::Sum { children, .. }) = (reach[i], node) {
-            by_children
-                .entry(children.as_slice())
-                .or_default()
-                .push(i as NodeId);
-        }
-    }
-    let mut groups: Vec<Vec<NodeId>> = by_children.into_values().collect();
-    groups.sort_by_key(|g| g[0]);
-    let mut slot: BTreeMap<NodeId, (usize, usize)> = BTreeMap::new();
-    for (b, g) in groups.iter().enumerate() {
-        for (m, &s) in g.iter().enumerate() {
-            slot.insert(s, (n + b, m));
-        }
-    }
+    Some(reach)
+}
+
+/// The block of the sums `sums` (which share their child list), given the blocks
+/// before it and every sum's `(vector, index)` slot; `None` when its children do not
+/// form full cartesian segments of earlier vectors.
+fn block(
+    spn: &Spn,
+    classes: usize,
+    slot: &BTreeMap<NodeId, (usize, usize)>,
+    blocks: &[Block],
+    sums: &[NodeId],
+) -> Option<Block> {
+    let (n, nodes, b) = (spn.num_vars(), &spn.nodes, blocks.len());
     // (vector, index) of a leaf or sum.
     let elem = |id: NodeId| -> Option<(usize, usize)> {
         match &nodes[id as usize] {
@@ -119,95 +152,85 @@ pub fn plan(spn: &Spn, classes: usize) -> Option<Plan> {
             Node::Product { .. } => None,
         }
     };
-    let mut blocks: Vec<Block> = Vec::with_capacity(groups.len());
-    for (b, sums) in groups.iter().enumerate() {
-        let Node::Sum { children, .. } = &nodes[sums[0] as usize] else {
-            return None;
+    let Node::Sum { children, .. } = &nodes[sums[0] as usize] else {
+        return None;
+    };
+    let mut segs: Vec<Segment> = Vec::new();
+    let mut seen: Vec<Vec<bool>> = Vec::new();
+    let mut seg_of: BTreeMap<Vec<usize>, usize> = BTreeMap::new();
+    let m_len = sums.len();
+    for (pos, &ch) in children.iter().enumerate() {
+        let mut tuple: Vec<(usize, usize)> = match &nodes[ch as usize] {
+            Node::Product { children } => {
+                children.iter().map(|&c| elem(c)).collect::<Option<_>>()?
+            }
+            _ => vec![elem(ch)?],
         };
-        let mut segs: Vec<Segment> = Vec::new();
-        let mut seen: Vec<Vec<bool>> = Vec::new();
-        let mut seg_of: BTreeMap<Vec<usize>, usize> = BTreeMap::new();
-        let m_len = sums.len();
-        for (pos, &ch) in children.iter().enumerate() {
-            let mut tuple: Vec<(usize, usize)> = match &nodes[ch as usize] {
-                Node::Product { children } => {
-                    children.iter().map(|&c| elem(c)).collect::<Option<_>>()?
-                }
-                _ => vec![elem(ch)?],
-            };
-            tuple.sort_unstable();
-            if tuple.windows(2).any(|w| w[0].0 == w[1].0) || tuple.len() > MAX_ARITY {
-                return None;
-            }
-            let inputs: Vec<usize> = tuple.iter().map(|t| t.0).collect();
-            // Inputs must be variables or earlier blocks.
-            if inputs.iter().any(|&g| g >= n + b) {
-                return None;
-            }
-            let s = match seg_of.get(&inputs) {
-                Some(&s) => s,
-                None => {
-                    let dims: Vec<usize> = inputs
-                        .iter()
-                        .map(|&g| {
-                            if g < n {
-                                classes
-                            } else {
-                                blocks[g - n].sums.len()
-                            }
-                        })
-                        .collect();
-                    let size: usize = dims.iter().product();
-                    if size.saturating_mul(m_len) > MAX_SEGMENT {
-                        return None;
-                    }
-                    seg_of.insert(inputs.clone(), segs.len());
-                    segs.push(Segment {
-                        inputs,
-                        dims,
-                        weights: vec![vec![0.0; size]; m_len],
-                    });
-                    seen.push(vec![false; size]);
-                    segs.len() - 1
-                }
-            };
-            let seg = &mut segs[s];
-            let mut t = 0usize;
-            for (&(_, idx), &d) in tuple.iter().zip(&seg.dims) {
-                if idx >= d {
-                    return None;
-                }
-                t = t * d + idx;
-            }
-            if std::mem::replace(&mut seen[s][t], true) {
-                return None;
-            }
-            for (m, &sum) in sums.iter().enumerate() {
-                let Node::Sum { weights, .. } = &nodes[sum as usize] else {
-                    return None;
-                };
-                seg.weights[m][t] = weights[pos];
-            }
-        }
-        if seen.iter().any(|s| s.iter().any(|&v| !v)) {
+        tuple.sort_unstable();
+        if tuple.windows(2).any(|w| w[0].0 == w[1].0) || tuple.len() > MAX_ARITY {
             return None;
         }
-        // MPE records a block's best tuple as an `f32` code (segment offset plus tuple
-        // index), exact below 2^24.
-        if segs.iter().map(|s| s.weights[0].len()).sum::<usize>() > MAX_BLOCK_TUPLES {
+        let inputs: Vec<usize> = tuple.iter().map(|t| t.0).collect();
+        // Inputs must be variables or earlier blocks.
+        if inputs.iter().any(|&g| g >= n + b) {
             return None;
         }
-        blocks.push(Block {
-            sums: sums.clone(),
-            segments: segs,
-        });
+        let s = match seg_of.get(&inputs) {
+            Some(&s) => s,
+            None => {
+                let dims: Vec<usize> = inputs
+                    .iter()
+                    .map(|&g| {
+                        if g < n {
+                            classes
+                        } else {
+                            blocks[g - n].sums.len()
+                        }
+                    })
+                    .collect();
+                let size: usize = dims.iter().product();
+                if size.saturating_mul(m_len) > MAX_SEGMENT {
+                    return None;
+                }
+                seg_of.insert(inputs.clone(), segs.len());
+                segs.push(Segment {
+                    inputs,
+                    dims,
+                    weights: vec![vec![0.0; size]; m_len],
+                });
+                seen.push(vec![false; size]);
+                segs.len() - 1
+            }
+        };
+        let seg = &mut segs[s];
+        let mut t = 0usize;
+        for (&(_, idx), &d) in tuple.iter().zip(&seg.dims) {
+            if idx >= d {
+                return None;
+            }
+            t = t * d + idx;
+        }
+        if std::mem::replace(&mut seen[s][t], true) {
+            return None;
+        }
+        for (m, &sum) in sums.iter().enumerate() {
+            let Node::Sum { weights, .. } = &nodes[sum as usize] else {
+                return None;
+            };
+            seg.weights[m][t] = weights[pos];
+        }
     }
-    let root = slot.get(&spn.root)?;
-    Some(Plan {
-        n,
-        classes,
-        blocks,
-        root: (root.0 - n, root.1),
+    if seen.iter().any(|s| s.iter().any(|&v| !v)) {
+        return None;
+    }
+    // MPE records a block's best tuple as an `f32` code (segment offset plus tuple
+    // index), exact below 2^24.
+    if segs.iter().map(|s| s.weights[0].len()).sum::<usize>() > MAX_BLOCK_TUPLES {
+        return None;
+    }
+    Some(Block {
+        sums: sums.to_vec(),
+        segments: segs,
     })
 }
 

@@ -21,9 +21,11 @@
 //! backtracking is always scalar, one component at a time.
 
 use std::collections::BTreeSet;
-use std::fmt::Write;
 
-use super::emit::{Lit, P};
+use proc_macro2::{Ident, TokenStream};
+use quote::{ToTokens, format_ident, quote};
+
+use super::emit::{Lit, int, join, rt};
 use super::kernels::{Plan, Segment};
 
 /// One row of a segment in floor + sparse form.
@@ -84,22 +86,42 @@ pub struct Counts {
 }
 
 impl SparseCode<'_> {
-    fn vec_name(&self, g: usize) -> String {
+    fn ident(&self, suffix: &str) -> Ident {
+        format_ident!("{}_{}", self.prefix, suffix)
+    }
+
+    /// Vector `g` of a sweep: a variable's `vars[g]` or block `{blocks}{g − n}`
+    /// (values `x` / `b`, adjoints `gx` / `g`).
+    fn vector(&self, g: usize, vars: &str, blocks: &str) -> TokenStream {
         if g < self.plan.n {
-            format!("x[{g}]")
+            let (vars, g) = (format_ident!("{vars}"), int(g));
+            quote!(#vars[#g])
         } else {
-            format!("b{}", g - self.plan.n)
+            let b = format_ident!("{blocks}{}", g - self.plan.n);
+            quote!(#b)
         }
     }
 
-    fn elem(&self, g: usize, i: usize) -> String {
-        format!("{}[{i}]", self.vec_name(g))
+    /// Input vector `g`: a variable's row `x[g]` or block `b{g − n}`.
+    fn vec_name(&self, g: usize) -> TokenStream {
+        self.vector(g, "x", "b")
+    }
+
+    /// The adjoint vector of input `g`: `gx[g]` or `g{g − n}`.
+    fn adjoint_name(&self, g: usize) -> TokenStream {
+        self.vector(g, "gx", "g")
+    }
+
+    fn elem(&self, g: usize, i: usize) -> TokenStream {
+        let v = self.vec_name(g);
+        let i = int(i);
+        quote!(#v[#i])
     }
 
     /// `a[i] * b[j] * c[k]` of tuple `t`, leaving out input position `skip`.
-    fn product(&self, seg: &Segment, t: usize, skip: Option<usize>) -> Option<String> {
+    fn product(&self, seg: &Segment, t: usize, skip: Option<usize>) -> Option<TokenStream> {
         let idx = tuple(seg, t);
-        let f: Vec<String> = seg
+        let f: Vec<TokenStream> = seg
             .inputs
             .iter()
             .zip(&idx)
@@ -107,64 +129,79 @@ impl SparseCode<'_> {
             .filter(|&(q, _)| Some(q) != skip)
             .map(|(_, (&g, &i))| self.elem(g, i))
             .collect();
-        (!f.is_empty()).then(|| f.join(" * "))
+        (!f.is_empty()).then(|| join(f, &quote!(*)))
     }
 
     /// `let sv{g} = V::sum(&vec)` (or `max_of`) once per input vector.
-    fn reduce(&self, g: usize, max: bool, done: &mut BTreeSet<usize>, body: &mut String) {
+    fn reduce(&self, g: usize, max: bool, done: &mut BTreeSet<usize>, body: &mut TokenStream) {
         if done.insert(g) {
-            let (name, f) = if max { ("mv", "max_of") } else { ("sv", "sum") };
-            let _ = writeln!(body, "let {name}{g} = V::{f}(&{});", self.vec_name(g));
+            let v = self.vec_name(g);
+            body.extend(if max {
+                let name = format_ident!("mv{g}");
+                quote!(let #name = V::max_of(&#v);)
+            } else {
+                let name = format_ident!("sv{g}");
+                quote!(let #name = V::sum(&#v);)
+            });
         }
     }
 
     /// Forward statements computing every block `b{k}`; returns the multiply count.
-    fn forward(&self, l: &Lit, max: bool, body: &mut String) -> usize {
+    fn forward(&self, l: &Lit, max: bool, body: &mut TokenStream) -> usize {
         let mut ops = 0;
         let mut done = BTreeSet::new();
         let agg = if max { "mv" } else { "sv" };
         for (b, block) in self.plan.blocks.iter().enumerate() {
-            let _ = writeln!(body, "let mut b{b} = [V::ZERO; {}];", block.sums.len());
+            let bb = format_ident!("b{b}");
+            let len = int(block.sums.len());
+            body.extend(quote!(let mut #bb = [V::ZERO; #len];));
             let seg_rows: Vec<Vec<Row>> = block.segments.iter().map(rows).collect();
             for (s, seg) in block.segments.iter().enumerate() {
                 if seg_rows[s].iter().any(|r| r.floor > 0.0) {
                     for &g in &seg.inputs {
                         self.reduce(g, max, &mut done, body);
                     }
-                    let f: Vec<String> = seg.inputs.iter().map(|g| format!("{agg}{g}")).collect();
+                    let f: Vec<Ident> = seg
+                        .inputs
+                        .iter()
+                        .map(|g| format_ident!("{agg}{g}"))
+                        .collect();
                     ops += f.len() - 1;
-                    let _ = writeln!(body, "let fp{b}_{s} = {};", f.join(" * "));
+                    let fp = format_ident!("fp{b}_{s}");
+                    let f = join(f, &quote!(*));
+                    body.extend(quote!(let #fp = #f;));
                 }
             }
             // Row `m` gathers its terms from every segment (`seg_rows[s][m]`).
             #[allow(clippy::needless_range_loop)]
             for m in 0..block.sums.len() {
-                let acc = format!("b{b}[{m}]");
+                let mi = int(m);
+                let acc = quote!(#bb[#mi]);
                 for (s, seg) in block.segments.iter().enumerate() {
                     let row = &seg_rows[s][m];
                     if row.floor > 0.0 {
-                        let f = format!("fp{b}_{s} * V::splat({})", l.num(row.floor));
+                        let fp = format_ident!("fp{b}_{s}");
+                        let floor = l.num(row.floor);
+                        let f = quote!(#fp * V::splat(#floor));
                         ops += 1;
-                        let _ = if max {
-                            writeln!(body, "{acc} = {acc}.max({f});")
+                        body.extend(if max {
+                            quote!(#acc = #acc.max(#f);)
                         } else {
-                            writeln!(body, "{acc} = {acc} + {f};")
-                        };
+                            quote!(#acc = #acc + #f;)
+                        });
                     }
                     for &(t, d, w) in &row.above {
                         let Some(p) = self.product(seg, t, None) else {
                             continue;
                         };
                         ops += seg.inputs.len();
-                        let _ = if max {
-                            writeln!(body, "{acc} = {acc}.max({p} * V::splat({}));", l.num(w))
+                        body.extend(if max {
+                            let w = l.num(w);
+                            quote!(#acc = #acc.max(#p * V::splat(#w));)
                         } else {
-                            writeln!(
-                                body,
-                                "{acc} = ({p}).mul_add(V::splat({}), {acc});",
-                                l.num(d)
-                            )
-                        };
+                            let d = l.num(d);
+                            quote!(#acc = (#p).mul_add(V::splat(#d), #acc);)
+                        });
                     }
                 }
             }
@@ -172,62 +209,63 @@ impl SparseCode<'_> {
         ops
     }
 
-    fn root(&self) -> String {
-        format!("b{}[{}]", self.plan.root.0, self.plan.root.1)
+    fn root(&self) -> TokenStream {
+        let b = format_ident!("b{}", self.plan.root.0);
+        let m = int(self.plan.root.1);
+        quote!(#b[#m])
     }
 
-    fn sig_x(&self) -> String {
-        format!("x: &[[V; {}]; {}]", self.plan.classes, self.plan.n)
+    /// `x: &[[V; C]; N]`.
+    fn arg_x(&self) -> TokenStream {
+        let c = int(self.plan.classes);
+        let n = int(self.plan.n);
+        quote!(x: &[[V; #c]; #n])
     }
 
-    /// `fn <prefix>_fwd(x) -> V`: the value of every lane's component.
-    pub fn fwd(&self, l: &Lit, out: &mut String) -> usize {
-        let mut body = String::new();
-        let ops = self.forward(l, false, &mut body);
-        let _ = writeln!(
-            out,
-            "#[inline(never)] fn {}_fwd({}) -> V {{ {body} {} }}",
-            self.prefix,
-            self.sig_x(),
-            self.root()
-        );
-        ops
+    /// `fn <prefix>_fwd(x) -> V`: the value of every lane's component; and its
+    /// multiply count.
+    pub fn fwd(&self, l: &Lit) -> (TokenStream, usize) {
+        self.value_fn(l, false)
     }
 
-    /// `fn <prefix>_max(x) -> V`: the max-product value of every lane's component.
-    pub fn max(&self, l: &Lit, out: &mut String) -> usize {
-        let mut body = String::new();
-        let ops = self.forward(l, true, &mut body);
-        let _ = writeln!(
-            out,
-            "#[inline(never)] fn {}_max({}) -> V {{ {body} {} }}",
-            self.prefix,
-            self.sig_x(),
-            self.root()
-        );
-        ops
+    /// `fn <prefix>_max(x) -> V`: the max-product value of every lane's component;
+    /// and its multiply count.
+    pub fn max(&self, l: &Lit) -> (TokenStream, usize) {
+        self.value_fn(l, true)
+    }
+
+    /// `_fwd` or `_max`: the forward sweep and the root.
+    fn value_fn(&self, l: &Lit, max: bool) -> (TokenStream, usize) {
+        let mut body = TokenStream::new();
+        let ops = self.forward(l, max, &mut body);
+        let name = self.ident(if max { "max" } else { "fwd" });
+        let (x, root) = (self.arg_x(), self.root());
+        (
+            quote!(#[inline(never)] fn #name(#x) -> V { #body #root }),
+            ops,
+        )
     }
 
     /// `fn <prefix>_post(x, post) -> V`: the value and the local posteriors
-    /// `post[i][c] = x_i[c]·∂T/∂x_i[c] / T` of every lane, by reverse-mode adjoints.
-    pub fn post(&self, l: &Lit, out: &mut String) -> usize {
+    /// `post[i][c] = x_i[c]·∂T/∂x_i[c] / T` of every lane, by reverse-mode adjoints;
+    /// and its multiply count.
+    pub fn post(&self, l: &Lit) -> (TokenStream, usize) {
         let p = self.plan;
-        let mut body = String::new();
+        let rt = rt();
+        let mut body = TokenStream::new();
         let mut ops = self.forward(l, false, &mut body);
         // The forward sweep defined `sv{g}` for the inputs of segments with a floor.
-        let _ = writeln!(body, "let mut gx = [[V::ZERO; {}]; {}];", p.classes, p.n);
+        let (c, n) = (int(p.classes), int(p.n));
+        body.extend(quote!(let mut gx = [[V::ZERO; #c]; #n];));
         for (b, block) in p.blocks.iter().enumerate() {
-            let _ = writeln!(body, "let mut g{b} = [V::ZERO; {}];", block.sums.len());
+            let g = format_ident!("g{b}");
+            let len = int(block.sums.len());
+            body.extend(quote!(let mut #g = [V::ZERO; #len];));
         }
-        let _ = writeln!(body, "g{}[{}] = V::splat(1.0);", p.root.0, p.root.1);
-        let gvec = |g: usize| -> String {
-            if g < p.n {
-                format!("gx[{g}]")
-            } else {
-                format!("g{}", g - p.n)
-            }
-        };
+        let (g_root, m_root) = (format_ident!("g{}", p.root.0), int(p.root.1));
+        body.extend(quote!(#g_root[#m_root] = V::splat(1.0);));
         for (b, block) in p.blocks.iter().enumerate().rev() {
+            let gb = format_ident!("g{b}");
             for seg in &block.segments {
                 let seg_rows = rows(seg);
                 let floors: Vec<(usize, f64)> = seg_rows
@@ -237,183 +275,191 @@ impl SparseCode<'_> {
                     .map(|(m, r)| (m, r.floor))
                     .collect();
                 if !floors.is_empty() {
-                    let terms: Vec<String> = floors
+                    let terms: Vec<TokenStream> = floors
                         .iter()
-                        .map(|&(m, f)| format!("g{b}[{m}] * V::splat({})", l.num(f)))
+                        .map(|&(m, f)| {
+                            let (m, f) = (int(m), l.num(f));
+                            quote!(#gb[#m] * V::splat(#f))
+                        })
                         .collect();
                     ops += terms.len();
-                    let _ = writeln!(body, "let gf = {};", terms.join(" + "));
+                    let terms = join(terms, &quote!(+));
+                    body.extend(quote!(let gf = #terms;));
                     for (q, &g) in seg.inputs.iter().enumerate() {
-                        let others: Vec<String> = seg
+                        let others: Vec<Ident> = seg
                             .inputs
                             .iter()
                             .enumerate()
                             .filter(|&(o, _)| o != q)
-                            .map(|(_, &o)| format!("sv{o}"))
+                            .map(|(_, &o)| format_ident!("sv{o}"))
                             .collect();
                         let v = if others.is_empty() {
-                            "gf".to_string()
+                            quote!(gf)
                         } else {
                             ops += others.len();
-                            format!("gf * {}", others.join(" * "))
+                            let others = join(others, &quote!(*));
+                            quote!(gf * #others)
                         };
-                        let _ = writeln!(body, "{P}add_all(&mut {}, {v});", gvec(g));
+                        let target = self.adjoint_name(g);
+                        body.extend(quote!(#rt::add_all(&mut #target, #v);));
                     }
                 }
                 for (m, row) in seg_rows.iter().enumerate() {
+                    let mi = int(m);
                     for &(t, d, _) in &row.above {
                         let idx = tuple(seg, t);
-                        let _ = writeln!(body, "let h = g{b}[{m}] * V::splat({});", l.num(d));
+                        let d = l.num(d);
+                        body.extend(quote!(let h = #gb[#mi] * V::splat(#d);));
                         ops += 1;
                         for (q, &g) in seg.inputs.iter().enumerate() {
-                            let target = format!("{}[{}]", gvec(g), idx[q]);
-                            match self.product(seg, t, Some(q)) {
+                            let (vector, i) = (self.adjoint_name(g), int(idx[q]));
+                            let target = quote!(#vector[#i]);
+                            body.extend(match self.product(seg, t, Some(q)) {
                                 Some(o) => {
                                     ops += seg.inputs.len() - 1;
-                                    let _ =
-                                        writeln!(body, "{target} = ({o}).mul_add(h, {target});");
+                                    quote!(#target = (#o).mul_add(h, #target);)
                                 }
-                                None => {
-                                    let _ = writeln!(body, "{target} = {target} + h;");
-                                }
-                            }
+                                None => quote!(#target = #target + h;),
+                            });
                         }
                     }
                 }
             }
         }
         ops += 2 * p.n * p.classes;
-        let _ = writeln!(body, "{P}post_rows(x, &gx, {}, post);", self.root());
-        let _ = writeln!(
-            out,
-            "#[inline(never)] fn {}_post({}, post: &mut [[V; {}]; {}]) -> V {{ {body} {} }}",
-            self.prefix,
-            self.sig_x(),
-            p.classes,
-            p.n,
-            self.root()
-        );
-        ops
+        let root = self.root();
+        body.extend(quote!(#rt::post_rows(x, &gx, #root, post);));
+        let (name, x) = (self.ident("post"), self.arg_x());
+        (
+            quote!(#[inline(never)] fn #name(#x, post: &mut [[V; #c]; #n]) -> V { #body #root }),
+            ops,
+        )
     }
 
     /// `fn <prefix>_mpe(x, lab) -> T`: the max-product value of one component and, by
-    /// backtracking the best tuple of every selected sum, its arg-max labelling.
-    pub fn mpe(&self, l: &Lit, out: &mut String) -> usize {
-        let t = l.t;
+    /// backtracking the best tuple of every selected sum, its arg-max labelling; and
+    /// its multiply count.
+    pub fn mpe(&self, l: &Lit) -> (TokenStream, usize) {
+        let t = l.ty();
         let p = self.plan;
+        let rt = rt();
         let mut ops = 0;
-        let mut body = String::new();
+        let mut body = TokenStream::new();
         let mut done = BTreeSet::new();
-        let vec_name = |g: usize| -> String {
-            if g < p.n {
-                format!("x[{g}]")
-            } else {
-                format!("b{}", g - p.n)
-            }
-        };
+        let (zero, minus_one) = (l.num(0.0), l.num(-1.0));
         for (b, block) in p.blocks.iter().enumerate() {
-            let m_len = block.sums.len();
-            let _ = writeln!(
-                body,
-                "let mut b{b} = [0.0{t}; {m_len}]; let mut a{b} = [[0u16; 4]; {m_len}];"
-            );
+            let (bb, ab) = (format_ident!("b{b}"), format_ident!("a{b}"));
+            let m_len = int(block.sums.len());
+            body.extend(quote!(
+                let mut #bb = [#zero; #m_len];
+                let mut #ab = [[0u16; 4]; #m_len];
+            ));
             let seg_rows: Vec<Vec<Row>> = block.segments.iter().map(rows).collect();
             for (seg, sr) in block.segments.iter().zip(&seg_rows) {
                 if sr.iter().any(|r| r.floor > 0.0) {
                     for &g in &seg.inputs {
                         if done.insert(g) {
-                            let _ =
-                                writeln!(body, "let (mv{g}, iv{g}) = {P}amax(&{});", vec_name(g));
+                            let (mv, iv) = (format_ident!("mv{g}"), format_ident!("iv{g}"));
+                            let v = self.vec_name(g);
+                            body.extend(quote!(let (#mv, #iv) = #rt::amax(&#v);));
                         }
                     }
                 }
             }
             // Row `m` gathers its candidates from every segment (`seg_rows[s][m]`).
             #[allow(clippy::needless_range_loop)]
-            for m in 0..m_len {
-                let _ = writeln!(body, "let mut r = -1.0{t};");
+            for m in 0..block.sums.len() {
+                let mi = int(m);
+                body.extend(quote!(let mut r = #minus_one;));
                 for (s, seg) in block.segments.iter().enumerate() {
                     let row = &seg_rows[s][m];
-                    let code = |idx: Vec<String>| -> String {
-                        let mut c = vec![format!("{s}")];
+                    // The code of a tuple: segment, then one index per input, 0-padded.
+                    let code = |idx: Vec<TokenStream>| -> TokenStream {
+                        let mut c = vec![int(s).into_token_stream()];
                         c.extend(idx);
-                        c.resize(4, "0".into());
-                        format!("[{}]", c.join(", "))
+                        c.resize(4, int(0).into_token_stream());
+                        let c = join(c, &quote!(,));
+                        quote!([#c])
                     };
                     if row.floor > 0.0 {
-                        let f: Vec<String> = seg.inputs.iter().map(|g| format!("mv{g}")).collect();
-                        let ivs: Vec<String> =
-                            seg.inputs.iter().map(|g| format!("iv{g}")).collect();
-                        ops += f.len();
-                        let _ = writeln!(
-                            body,
-                            "{P}sel(&mut r, &mut a{b}[{m}], {} * {}, {});",
-                            f.join(" * "),
-                            l.num(row.floor),
-                            code(ivs)
+                        let f = join(
+                            seg.inputs.iter().map(|g| format_ident!("mv{g}")),
+                            &quote!(*),
                         );
+                        let ivs = seg
+                            .inputs
+                            .iter()
+                            .map(|g| format_ident!("iv{g}").into_token_stream())
+                            .collect();
+                        ops += seg.inputs.len();
+                        let (floor, code) = (l.num(row.floor), code(ivs));
+                        body.extend(quote!(#rt::sel(&mut r, &mut #ab[#mi], #f * #floor, #code);));
                     }
                     for &(tt, _, w) in &row.above {
                         let idx = tuple(seg, tt);
-                        let f: Vec<String> = seg
-                            .inputs
-                            .iter()
-                            .zip(&idx)
-                            .map(|(&g, &i)| format!("{}[{i}]", vec_name(g)))
-                            .collect();
-                        ops += f.len();
-                        let _ = writeln!(
-                            body,
-                            "{P}sel(&mut r, &mut a{b}[{m}], {} * {}, {});",
-                            f.join(" * "),
-                            l.num(w),
-                            code(idx.iter().map(|i| i.to_string()).collect())
+                        let f = join(
+                            seg.inputs.iter().zip(&idx).map(|(&g, &i)| self.elem(g, i)),
+                            &quote!(*),
                         );
+                        ops += seg.inputs.len();
+                        let (w, code) = (
+                            l.num(w),
+                            code(idx.iter().map(|&i| int(i).into_token_stream()).collect()),
+                        );
+                        body.extend(quote!(#rt::sel(&mut r, &mut #ab[#mi], #f * #w, #code);));
                     }
                 }
-                let _ = writeln!(body, "b{b}[{m}] = r.max(0.0);");
+                body.extend(quote!(#bb[#mi] = r.max(0.0);));
             }
         }
+        self.backtrack(&mut body);
+        let c = int(p.classes);
+        let (name, n, root) = (self.ident("mpe"), int(p.n), self.root());
+        (
+            quote!(#[inline(never)] fn #name(x: &[[#t; #c]; #n], lab: &mut [u16; #n]) -> #t { #body #root }),
+            ops,
+        )
+    }
+
+    /// MPE backtracking: from the root, mark the selected tuple of every selected
+    /// sum, then write each variable's selected class into `lab`.
+    fn backtrack(&self, body: &mut TokenStream) {
+        let p = self.plan;
+        let rt = rt();
+        let c = int(p.classes);
         for v in 0..p.n {
-            let _ = writeln!(body, "let mut sx{v} = [false; {}];", p.classes);
+            let sx = format_ident!("sx{v}");
+            body.extend(quote!(let mut #sx = [false; #c];));
         }
         for (b, block) in p.blocks.iter().enumerate() {
-            let _ = writeln!(body, "let mut s{b} = [false; {}];", block.sums.len());
+            let sb = format_ident!("s{b}");
+            let len = int(block.sums.len());
+            body.extend(quote!(let mut #sb = [false; #len];));
         }
-        let _ = writeln!(body, "s{}[{}] = true;", p.root.0, p.root.1);
+        let (s_root, m_root) = (format_ident!("s{}", p.root.0), int(p.root.1));
+        body.extend(quote!(#s_root[#m_root] = true;));
         for (b, block) in p.blocks.iter().enumerate().rev() {
+            let (sb, ab) = (format_ident!("s{b}"), format_ident!("a{b}"));
             for (s, seg) in block.segments.iter().enumerate() {
-                let sels: Vec<String> = seg
-                    .inputs
-                    .iter()
-                    .map(|&g| {
-                        if g < p.n {
-                            format!("&mut sx{g}")
+                let sels = join(
+                    seg.inputs.iter().map(|&g| {
+                        let sel = if g < p.n {
+                            format_ident!("sx{g}")
                         } else {
-                            format!("&mut s{}", g - p.n)
-                        }
-                    })
-                    .collect();
-                let _ = writeln!(
-                    body,
-                    "{P}d{}_back({s}, &s{b}, &a{b}, {});",
-                    seg.dims.len(),
-                    sels.join(", ")
+                            format_ident!("s{}", g - p.n)
+                        };
+                        quote!(&mut #sel)
+                    }),
+                    &quote!(,),
                 );
+                let back = format_ident!("d{}_back", seg.dims.len());
+                let s = int(s);
+                body.extend(quote!(#rt::#back(#s, &#sb, &#ab, #sels);));
             }
         }
         for v in 0..p.n {
-            let _ = writeln!(body, "{P}sel_label(&sx{v}, &mut lab[{v}]);");
+            let (sx, vi) = (format_ident!("sx{v}"), int(v));
+            body.extend(quote!(#rt::sel_label(&#sx, &mut lab[#vi]);));
         }
-        let _ = writeln!(
-            out,
-            "#[inline(never)] fn {}_mpe(x: &[[{t}; {}]; {}], lab: &mut [u16; {}]) -> {t} {{ {body} {} }}",
-            self.prefix,
-            p.classes,
-            p.n,
-            p.n,
-            self.root()
-        );
-        ops
     }
 }

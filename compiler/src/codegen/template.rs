@@ -8,12 +8,14 @@
 //! `∂T/∂v`, in log space it propagates flows `v·∂T/∂v / T ∈ [0, 1]`.
 
 use std::collections::BTreeMap;
-use std::fmt::Write;
+
+use proc_macro2::{Ident, TokenStream};
+use quote::{ToTokens, format_ident, quote};
 
 use crate::spn::{Node, Spn};
 
 use super::analysis::Numerics;
-use super::emit::{Lit, P};
+use super::emit::{Lit, array, int, join};
 
 /// Sums with more children than this use a `static` weight array and `dot_*`.
 pub const DENSE_MIN: usize = 4;
@@ -71,11 +73,22 @@ fn ops(spn: &Spn) -> BTreeMap<usize, Op> {
     out
 }
 
-fn join(terms: &[String], op: &str, flat: &str, empty: &str) -> String {
+/// `terms` joined by `op`, as a flat `flat([..])` call when there are more than
+/// [`FLAT_MIN`], or `empty` when there are none; and whether the result is an
+/// operator chain of several terms (which needs brackets inside a product).
+fn join_terms(
+    terms: Vec<TokenStream>,
+    op: TokenStream,
+    flat: TokenStream,
+    empty: TokenStream,
+) -> (TokenStream, bool) {
     match terms.len() {
-        0 => empty.to_string(),
-        n if n > FLAT_MIN => format!("{flat}([{}])", terms.join(", ")),
-        _ => terms.join(op),
+        0 => (empty, false),
+        n if n > FLAT_MIN => {
+            let terms = array(terms);
+            (quote!(#flat(#terms)), false)
+        }
+        n => (join(terms, &op), n > 1),
     }
 }
 
@@ -84,160 +97,193 @@ impl TemplateCode<'_> {
         self.spn.num_vars()
     }
 
-    fn sig_x(&self, l: &Lit) -> String {
-        format!("x: &[[{}; {}]; {}]", l.t, self.classes, self.n())
+    fn ident(&self, suffix: &str) -> Ident {
+        format_ident!("{}_{}", self.prefix, suffix)
+    }
+
+    /// `x: &[[T; C]; N]`.
+    fn arg_x(&self, l: &Lit) -> TokenStream {
+        let (t, c, n) = (l.ty(), int(self.classes), int(self.n()));
+        quote!(x: &[[#t; #c]; #n])
     }
 
     fn linear(&self) -> bool {
         matches!(self.numerics, Numerics::Linear { .. })
     }
 
+    /// The `static` weight array of dense sum `i`.
+    fn weights(&self, i: usize) -> Ident {
+        format_ident!("W_{}_{}", self.prefix.to_uppercase(), i)
+    }
+
+    /// `terms` summed (`a + b`, or `sum_f32([..])` when long; `0.0` when empty).
+    fn sum_of(&self, l: &Lit, terms: Vec<TokenStream>) -> (TokenStream, bool) {
+        join_terms(terms, quote!(+), l.helper("sum"), quote!(0.0))
+    }
+
     /// Statics (weight arrays) shared by this template's functions.
-    pub fn statics(&self, l: &Lit, out: &mut String) {
+    pub fn statics(&self, l: &Lit) -> TokenStream {
+        let mut out = TokenStream::new();
         if !self.linear() {
-            return;
+            return out;
         }
+        let t = l.ty();
         for (i, op) in ops(self.spn) {
             if let Op::Sum(ch) = op
                 && ch.len() > DENSE_MIN
             {
-                let ws: Vec<String> = ch.iter().map(|&(_, w)| l.num(w)).collect();
-                let _ = writeln!(
-                    out,
-                    "static W_{}_{i}: [{}; {}] = [{}];",
-                    self.prefix.to_uppercase(),
-                    l.t,
-                    ch.len(),
-                    ws.join(", ")
-                );
+                let name = self.weights(i);
+                let len = int(ch.len());
+                let ws = array(ch.iter().map(|&(_, w)| l.num(w)));
+                out.extend(quote!(static #name: [#t; #len] = #ws;));
             }
         }
+        out
     }
 
     /// Forward statements; `max` selects max-product (sums become `argmax`).
-    fn forward(&self, l: &Lit, max: bool, body: &mut String) {
-        let t = l.t;
+    fn forward(&self, l: &Lit, max: bool, body: &mut TokenStream) {
+        let t = l.ty();
         let ops = ops(self.spn);
+        let node = |c: usize| format_ident!("n{c}");
         if !self.linear() {
-            let _ = writeln!(body, "let lx = {P}ln_rows_{t}(x);");
+            let ln_rows = l.helper("ln_rows");
+            body.extend(quote!(let lx = #ln_rows(x);));
         }
         for (&i, op) in ops.iter() {
+            let ni = node(i);
             let stmt = match op {
-                Op::Leaf(v, c) if self.linear() => format!("let n{i} = x[{v}][{c}];"),
-                Op::Leaf(v, c) => format!("let n{i} = lx[{v}][{c}];"),
-                Op::Product(ch) => {
-                    let terms: Vec<String> = ch.iter().map(|c| format!("n{c}")).collect();
+                Op::Leaf(v, c) => {
+                    let (v, c) = (int(*v), int(*c));
                     if self.linear() {
-                        format!(
-                            "let n{i} = {};",
-                            join(&terms, " * ", &format!("{P}prod_{t}"), "1.0")
-                        )
+                        quote!(let #ni = x[#v][#c];)
                     } else {
-                        format!(
-                            "let n{i} = {};",
-                            join(&terms, " + ", &format!("{P}sum_{t}"), "0.0")
-                        )
+                        quote!(let #ni = lx[#v][#c];)
                     }
                 }
-                Op::Sum(ch) => {
-                    let terms: Vec<String> = if self.linear() {
-                        ch.iter()
-                            .map(|&(c, w)| format!("{} * n{c}", l.num(w)))
-                            .collect()
+                Op::Product(ch) => {
+                    let terms = ch.iter().map(|&c| node(c).into_token_stream()).collect();
+                    let (e, _) = if self.linear() {
+                        join_terms(terms, quote!(*), l.helper("prod"), quote!(1.0))
                     } else {
-                        ch.iter()
-                            .map(|&(c, w)| format!("{} + n{c}", l.num(w.ln())))
-                            .collect()
+                        self.sum_of(l, terms)
                     };
+                    quote!(let #ni = #e;)
+                }
+                Op::Sum(ch) => {
+                    let terms: Vec<TokenStream> = ch
+                        .iter()
+                        .map(|&(c, w)| {
+                            let c = node(c);
+                            if self.linear() {
+                                let w = l.num(w);
+                                quote!(#w * #c)
+                            } else {
+                                let w = l.num(w.ln());
+                                quote!(#w + #c)
+                            }
+                        })
+                        .collect();
                     if ch.is_empty() {
                         let z = if self.linear() {
-                            "0.0".to_string()
+                            quote!(0.0)
                         } else {
-                            format!("{t}::NEG_INFINITY")
+                            quote!(#t::NEG_INFINITY)
                         };
+                        let ai = format_ident!("a{i}");
                         if max {
-                            format!("let (n{i}, a{i}) = ({z}, 0u16);")
+                            quote!(let (#ni, #ai) = (#z, 0u16);)
                         } else {
-                            format!("let n{i}: {t} = {z};")
+                            quote!(let #ni: #t = #z;)
                         }
                     } else if max {
-                        format!("let (n{i}, a{i}) = {P}argmax_{t}([{}]);", terms.join(", "))
+                        let (f, ai, terms) =
+                            (l.helper("argmax"), format_ident!("a{i}"), array(terms));
+                        quote!(let (#ni, #ai) = #f(#terms);)
                     } else if !self.linear() {
-                        format!("let n{i} = {P}lse_{t}([{}]);", terms.join(", "))
+                        let (f, terms) = (l.helper("lse"), array(terms));
+                        quote!(let #ni = #f(#terms);)
                     } else if ch.len() > DENSE_MIN {
-                        let vs: Vec<String> = ch.iter().map(|&(c, _)| format!("n{c}")).collect();
-                        format!(
-                            "let n{i} = {P}dot_{t}(&W_{}_{i}, &[{}]);",
-                            self.prefix.to_uppercase(),
-                            vs.join(", ")
-                        )
+                        let (f, w) = (l.helper("dot"), self.weights(i));
+                        let vs = array(ch.iter().map(|&(c, _)| node(c)));
+                        quote!(let #ni = #f(&#w, &#vs);)
                     } else {
-                        format!("let n{i} = {};", terms.join(" + "))
+                        let e = join(terms, &quote!(+));
+                        quote!(let #ni = #e;)
                     }
                 }
             };
-            body.push_str(&stmt);
-            body.push('\n');
+            body.extend(stmt);
         }
     }
 
     /// `fn <prefix>_fwd(x) -> value` (linear value, or log value in log space).
-    pub fn fwd(&self, l: &Lit, out: &mut String) {
-        let mut body = String::new();
+    pub fn fwd(&self, l: &Lit) -> TokenStream {
+        let mut body = TokenStream::new();
         self.forward(l, false, &mut body);
-        let _ = writeln!(
-            out,
-            "#[inline(never)] fn {}_fwd({}) -> {} {{ {body} n{} }}",
-            self.prefix,
-            self.sig_x(l),
-            l.t,
-            self.spn.root
+        let (name, x, t, root) = (
+            self.ident("fwd"),
+            self.arg_x(l),
+            l.ty(),
+            format_ident!("n{}", self.spn.root),
         );
+        quote!(#[inline(never)] fn #name(#x) -> #t { #body #root })
+    }
+
+    /// `fn <prefix>_max(x) -> value`: the max-product value (through `_mpe`, its
+    /// labelling discarded).
+    pub fn max(&self, l: &Lit) -> TokenStream {
+        let (name, mpe, x, t, n) = (
+            self.ident("max"),
+            self.ident("mpe"),
+            self.arg_x(l),
+            l.ty(),
+            int(self.n()),
+        );
+        quote!(#[inline(never)] fn #name(#x) -> #t { let mut lab = [0u16; #n]; #mpe(x, &mut lab) })
     }
 
     /// `fn <prefix>_post(x, post) -> value`: also writes the local posteriors
     /// `post[i][c] = x_i[c]·∂T/∂x_i[c] / T`.
-    pub fn post(&self, l: &Lit, out: &mut String) {
-        let t = l.t;
+    pub fn post(&self, l: &Lit) -> TokenStream {
+        let t = l.ty();
         let ops = ops(self.spn);
-        let mut body = String::new();
+        let mut body = TokenStream::new();
         self.forward(l, false, &mut body);
         let root = self.spn.root as usize;
+        let node = |c: usize| format_ident!("n{c}");
+        let adjoint = |c: usize| format_ident!("g{c}");
         // Terms flowing into each node, filled top-down.
-        let mut terms: BTreeMap<usize, Vec<String>> = BTreeMap::new();
-        let mut leaf_terms: BTreeMap<(usize, usize), Vec<String>> = BTreeMap::new();
+        let mut terms: BTreeMap<usize, Vec<TokenStream>> = BTreeMap::new();
+        // Per leaf (variable, class): the adjoint of each leaf node, and whether it is
+        // a `+` chain.
+        let mut leaf_terms: BTreeMap<(usize, usize), Vec<(TokenStream, bool)>> = BTreeMap::new();
         for (&i, op) in ops.iter().rev() {
-            let g = if i == root {
-                "1.0".to_string()
+            let (g, chain) = if i == root {
+                (quote!(1.0), false)
             } else {
-                join(
-                    terms.get(&i).map_or(&[][..], |v| v),
-                    " + ",
-                    &format!("{P}sum_{t}"),
-                    "0.0",
-                )
+                self.sum_of(l, terms.remove(&i).unwrap_or_default())
             };
-            match op {
-                Op::Leaf(v, c) => {
-                    leaf_terms.entry((*v, *c)).or_default().push(g);
-                    continue;
-                }
-                _ => {
-                    let _ = writeln!(body, "let g{i}: {t} = {g};");
-                }
+            if let Op::Leaf(v, c) = op {
+                leaf_terms.entry((*v, *c)).or_default().push((g, chain));
+                continue;
             }
+            let gi = adjoint(i);
+            body.extend(quote!(let #gi: #t = #g;));
             match op {
                 Op::Leaf(..) => {}
                 Op::Sum(ch) => {
                     for (j, &(c, w)) in ch.iter().enumerate() {
-                        let term = if self.linear() {
-                            if ch.len() > DENSE_MIN {
-                                format!("W_{}_{i}[{j}] * g{i}", self.prefix.to_uppercase())
-                            } else {
-                                format!("{} * g{i}", l.num(w))
-                            }
+                        let term = if !self.linear() {
+                            let (flow, w, nc, ni) =
+                                (l.helper("flow"), l.num(w.ln()), node(c), node(i));
+                            quote!(#flow(#gi, #w + #nc, #ni))
+                        } else if ch.len() > DENSE_MIN {
+                            let (ws, j) = (self.weights(i), int(j));
+                            quote!(#ws[#j] * #gi)
                         } else {
-                            format!("{P}flow_{t}(g{i}, {} + n{c}, n{i})", l.num(w.ln()))
+                            let w = l.num(w);
+                            quote!(#w * #gi)
                         };
                         terms.entry(c).or_default().push(term);
                     }
@@ -245,94 +291,94 @@ impl TemplateCode<'_> {
                 Op::Product(ch) => {
                     for (j, &c) in ch.iter().enumerate() {
                         let term = if self.linear() {
-                            let mut f = vec![format!("g{i}")];
-                            f.extend(
-                                ch.iter()
-                                    .enumerate()
-                                    .filter(|&(k, _)| k != j)
-                                    .map(|(_, o)| format!("n{o}")),
-                            );
-                            f.join(" * ")
+                            let others = ch
+                                .iter()
+                                .enumerate()
+                                .filter(|&(k, _)| k != j)
+                                .map(|(_, &o)| node(o));
+                            join(std::iter::once(gi.clone()).chain(others), &quote!(*))
                         } else {
-                            format!("g{i}")
+                            quote!(#gi)
                         };
                         terms.entry(c).or_default().push(term);
                     }
                 }
             }
         }
+        let n_root = node(root);
         if self.linear() {
-            let _ = writeln!(body, "let inv = 1.0 / n{root};");
+            body.extend(quote!(let inv = 1.0 / #n_root;));
         }
-        for ((v, c), ts) in &leaf_terms {
-            let g = join(ts, " + ", &format!("{P}sum_{t}"), "0.0");
-            if self.linear() {
-                let g = if g.contains(" + ") && !g.starts_with(P) {
-                    format!("({g})")
-                } else {
-                    g
-                };
-                let _ = writeln!(body, "post[{v}][{c}] = x[{v}][{c}] * {g} * inv;");
+        for ((v, c), mut ts) in leaf_terms {
+            // A `+` chain is bracketed inside the product below.
+            let (g, chain) = if ts.len() == 1 {
+                ts.remove(0)
             } else {
-                let _ = writeln!(body, "post[{v}][{c}] = {g};");
-            }
+                self.sum_of(l, ts.into_iter().map(|(g, _)| g).collect())
+            };
+            let (v, c) = (int(v), int(c));
+            body.extend(if !self.linear() {
+                quote!(post[#v][#c] = #g;)
+            } else if chain {
+                quote!(post[#v][#c] = x[#v][#c] * (#g) * inv;)
+            } else {
+                quote!(post[#v][#c] = x[#v][#c] * #g * inv;)
+            });
         }
-        let _ = writeln!(
-            out,
-            "#[inline(never)] fn {}_post({}, post: &mut [[{t}; {}]; {}]) -> {t} {{ {body} n{root} }}",
-            self.prefix,
-            self.sig_x(l),
-            self.classes,
-            self.n()
+        let (name, x, cl, n) = (
+            self.ident("post"),
+            self.arg_x(l),
+            int(self.classes),
+            int(self.n()),
         );
+        quote!(#[inline(never)] fn #name(#x, post: &mut [[#t; #cl]; #n]) -> #t { #body #n_root })
     }
 
     /// `fn <prefix>_mpe(x, lab) -> value`: max-product value (linear or log) and the
     /// argmax labelling by backtracking (ties → lowest child index).
-    pub fn mpe(&self, l: &Lit, out: &mut String) {
+    pub fn mpe(&self, l: &Lit) -> TokenStream {
         let ops = ops(self.spn);
-        let mut body = String::new();
+        let mut body = TokenStream::new();
         self.forward(l, true, &mut body);
         let root = self.spn.root as usize;
-        let mut terms: BTreeMap<usize, Vec<String>> = BTreeMap::new();
+        let mut terms: BTreeMap<usize, Vec<TokenStream>> = BTreeMap::new();
         for (&i, op) in ops.iter().rev() {
             let b = if i == root {
-                "true".to_string()
+                quote!(true)
             } else {
-                let ts = terms.get(&i).map_or(&[][..], |v| v);
-                if ts.is_empty() {
-                    "false".to_string()
-                } else {
-                    ts.join(" | ")
+                match terms.remove(&i) {
+                    Some(ts) if !ts.is_empty() => join(ts, &quote!(|)),
+                    _ => quote!(false),
                 }
             };
-            let _ = writeln!(body, "let b{i}: bool = {b};");
+            let bi = format_ident!("b{i}");
+            body.extend(quote!(let #bi: bool = #b;));
             match op {
                 Op::Leaf(v, c) => {
-                    let _ = writeln!(body, "if b{i} {{ lab[{v}] = {c}; }}");
+                    let (v, c) = (int(*v), int(*c));
+                    body.extend(quote!(if #bi { lab[#v] = #c; }));
                 }
                 Op::Sum(ch) => {
+                    let ai = format_ident!("a{i}");
                     for (j, &(c, _)) in ch.iter().enumerate() {
-                        terms
-                            .entry(c)
-                            .or_default()
-                            .push(format!("b{i} & (a{i} == {j})"));
+                        let j = int(j);
+                        terms.entry(c).or_default().push(quote!(#bi & (#ai == #j)));
                     }
                 }
                 Op::Product(ch) => {
                     for &c in ch {
-                        terms.entry(c).or_default().push(format!("b{i}"));
+                        terms.entry(c).or_default().push(quote!(#bi));
                     }
                 }
             }
         }
-        let _ = writeln!(
-            out,
-            "#[inline(never)] fn {}_mpe({}, lab: &mut [u16; {}]) -> {} {{ {body} n{root} }}",
-            self.prefix,
-            self.sig_x(l),
-            self.n(),
-            l.t
+        let (name, x, n, t, n_root) = (
+            self.ident("mpe"),
+            self.arg_x(l),
+            int(self.n()),
+            l.ty(),
+            format_ident!("n{root}"),
         );
+        quote!(#[inline(never)] fn #name(#x, lab: &mut [u16; #n]) -> #t { #body #n_root })
     }
 }

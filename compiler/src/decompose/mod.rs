@@ -6,7 +6,7 @@
 //!   the smaller templates.
 //! - [`Decomposition::validate`]: partition and match checks, independent of
 //!   the matcher.
-//! - [`file`]: the versioned JSON format (template names and place ids).
+//! - [`file`](mod@file): the versioned JSON format (template names and place ids).
 //! - [`synthetic`]: random connected graphs and grids for tests and benchmarks.
 
 use serde::{Deserialize, Serialize};

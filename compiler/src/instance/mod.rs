@@ -13,16 +13,16 @@
 //! are unchanged) and the instance smaller.
 
 //!
-//! - [`Instance::build`] / [`Instance::for_map`]: assembly from given decompositions or
+//! - [`Instance::build`](crate::instance::Instance::build) / [`Instance::for_map`](crate::instance::Instance::for_map): assembly from given decompositions or
 //!   from [`crate::decompose::decompose_best`];
-//! - [`InstanceModel`]: marginals, log-likelihood of a partial labelling and MPE per
+//! - [`InstanceModel`](crate::instance::InstanceModel): marginals, log-likelihood of a partial labelling and MPE per
 //!   place through the exact interpreter;
-//! - [`Instance::update`] / [`Instance::grow`] / [`grow_decompositions`]: incremental
+//! - [`Instance::update`](crate::instance::Instance::update) / [`Instance::grow`](crate::instance::Instance::grow) / [`grow_decompositions`](crate::instance::grow_decompositions): incremental
 //!   updates when the map grows, keeping untouched template copies;
-//! - [`ComponentInstance`]: the same queries evaluated component by component against
+//! - [`ComponentInstance`](crate::instance::ComponentInstance): the same queries evaluated component by component against
 //!   the shared template networks (memory linear in places, no explicit SPN), with
 //!   incremental evidence updates and growth;
-//! - [`Instance::to_json`] / [`Instance::to_dot`]: export.
+//! - [`Instance::to_json`](crate::instance::Instance::to_json) / [`Instance::to_dot`](crate::instance::Instance::to_dot): export.
 
 mod build;
 mod components;

@@ -26,61 +26,10 @@ use rand::Rng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
-use serde::{Deserialize, Serialize};
-
+// The structure parameters live with the other settings (`super::settings`, below
+// every algorithm of `learn`); re-exported here, where they are used.
+pub use super::settings::{DenseParams, SplitChoice};
 use crate::spn::{Node, NodeId, Spn};
-
-/// Parameters of the dense random structure.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct DenseParams {
-    /// Random splits per multi-variable region (authors: 1).
-    pub decompositions: usize,
-    /// Subsets per split, at most the region size (authors: 3).
-    pub subsets: usize,
-    /// Sums per non-root multi-variable region (authors: 5); the root has one.
-    pub sums: usize,
-    /// Balanced subset sizes (sizes differ by at most one; authors: true).
-    pub balanced: bool,
-    /// Which random split a symmetric structure keeps (see [`SplitChoice`]);
-    /// ignored by [`dense_structure`].
-    pub split_choice: SplitChoice,
-}
-
-/// How [`symmetric_dense_structure`] picks a region's split among
-/// [`SPLIT_CANDIDATES`] random draws before closing it under the template's
-/// automorphisms.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SplitChoice {
-    /// The split with the fewest images under the group: the smallest closed
-    /// structure (Star: `{P},{x,y},{z,w}`, 3 images, 3,750 weights with 10 classes).
-    /// The pivot then shares no subset with a neighbour, so its dependence on
-    /// the leaves is carried by the mixture only.
-    FewestImages,
-    /// The split with the most images: every way of grouping variables appears
-    /// (Star: `{P,x},{y,z},{w}`, 12 images, 8,000 weights): the pivot gets a full
-    /// joint table with each neighbour, at about twice the evaluation cost.
-    /// The default: validated on the training buildings only (each tested with a
-    /// model trained on the other, `graphspn reproduce --exclude B`), it beats
-    /// `FewestImages` at every noise level — e.g. NL6 accuracy 81.9% vs 79.7% and
-    /// NL2 placeholder accuracy 69.4% vs 64.2% with Freiburg ↔ Saarbrucken
-    /// (`docs/REPRODUCTION.md`).
-    #[default]
-    MostImages,
-}
-
-impl Default for DenseParams {
-    fn default() -> Self {
-        DenseParams {
-            decompositions: 1,
-            subsets: 3,
-            sums: 5,
-            balanced: true,
-            split_choice: SplitChoice::MostImages,
-        }
-    }
-}
 
 /// Why a structure could not be built.
 #[derive(Debug, thiserror::Error, PartialEq)]

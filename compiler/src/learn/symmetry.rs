@@ -22,7 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
 #[cfg(feature = "host")]
-use super::train::TrainError;
+use super::settings::TrainError;
 use crate::map::ClassId;
 use crate::spn::{Node, NodeId, Spn};
 

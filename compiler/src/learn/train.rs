@@ -33,64 +33,8 @@ use super::symmetry::{EdgeOrbits, order_free_sum, set_normalised, sum_edge_offse
 use crate::map::ClassId;
 use crate::spn::{Node, NodeId, Spn};
 
-/// Why training failed.
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum TrainError {
-    /// No samples.
-    #[error("no training samples")]
-    NoSamples,
-    /// A sample has the wrong number of classes.
-    #[error("sample {index} has {len} classes, the SPN has {num_vars} variables")]
-    SampleLength {
-        /// Index of the sample.
-        index: usize,
-        /// Its length.
-        len: usize,
-        /// Variables of the SPN.
-        num_vars: usize,
-    },
-    /// A class is out of range.
-    #[error(
-        "sample {index}: class {class} of variable {var} is out of range (variable has {classes} classes)"
-    )]
-    ClassOutOfRange {
-        /// Index of the sample.
-        index: usize,
-        /// Variable.
-        var: usize,
-        /// The class given.
-        class: ClassId,
-        /// Classes of the variable.
-        classes: u32,
-    },
-    /// The SPN is not usable for training.
-    #[error("invalid SPN for training: node {node}: {what}")]
-    BadSpn {
-        /// Offending node.
-        node: NodeId,
-        /// What is wrong.
-        what: String,
-    },
-    /// A sample has probability zero under the SPN (e.g. after pruning).
-    #[error("sample {index} {sample:?} has probability zero under the SPN")]
-    ZeroProbability {
-        /// Index of a sample with that tuple.
-        index: usize,
-        /// The tuple.
-        sample: Vec<ClassId>,
-    },
-    /// Settings out of range.
-    #[error("invalid training settings: {0}")]
-    BadSettings(String),
-    /// Tying information does not fit the SPN.
-    #[error("edge orbits list {given} edges, the SPN has {actual} sum edges")]
-    OrbitMismatch {
-        /// Edges in the orbits.
-        given: usize,
-        /// Sum edges of the SPN.
-        actual: usize,
-    },
-}
+// Shared with `symmetry` (sample checks), so it lives in `settings`, below both.
+pub use super::settings::TrainError;
 
 /// Whether to draw a progress bar.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,11 +1,11 @@
 //! Markov random field baselines (MRF-2, MRF-3) with loopy belief propagation.
 //!
-//! - [`factor_graph`]: a general discrete factor graph with dense tables, and
+//! - [`factor_graph`](crate::mrf::factor_graph): a general discrete factor graph with dense tables, and
 //!   brute-force exact inference for testing.
-//! - [`bp`]: sum-product loopy belief propagation with damping, two schedules
+//! - [`bp`](crate::mrf::bp): sum-product loopy belief propagation with damping, two schedules
 //!   and the Bethe approximation of `log Z`.
-//! - [`model`]: the paper's baselines built on a [`crate::map::TopoMap`]:
-//!   [`Mrf2`] (a pairwise factor per edge) and [`Mrf3`] (a three-variable factor
+//! - [`model`](crate::mrf::model): the paper's baselines built on a [`crate::map::TopoMap`]:
+//!   [`Mrf2`](crate::mrf::Mrf2) (a pairwise factor per edge) and [`Mrf3`](crate::mrf::Mrf3) (a three-variable factor
 //!   per connected triple), with potentials from co-occurrence counts.
 
 pub mod bp;

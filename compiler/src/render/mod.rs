@@ -1,6 +1,6 @@
 //! SVG drawings of maps, per-place class distributions and decompositions.
 //!
-//! [`render_svg`] draws a [`TopoMap`] at its poses (metres, y up): edges as
+//! [`render_svg`](crate::render::render_svg) draws a [`TopoMap`](crate::map::TopoMap) at its poses (metres, y up): edges as
 //! lines, places as discs coloured by class with a legend of class names,
 //! placeholders as hollow dashed rings. Options add a title, a pie chart per
 //! place (e.g. marginals), a colouring by decomposition component (template

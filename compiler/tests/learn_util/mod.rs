@@ -8,22 +8,9 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
-/// All permutations of `items`.
-pub fn permutations(items: &[usize]) -> Vec<Vec<usize>> {
-    if items.len() <= 1 {
-        return vec![items.to_vec()];
-    }
-    let mut out = Vec::new();
-    for i in 0..items.len() {
-        let mut rest = items.to_vec();
-        let x = rest.remove(i);
-        for mut p in permutations(&rest) {
-            p.insert(0, x);
-            out.push(p);
-        }
-    }
-    out
-}
+#[path = "../common/mod.rs"]
+mod common;
+pub use common::permutations;
 
 /// Automorphisms of Pair (P–A): identity and the swap.
 pub fn pair_group() -> Vec<Vec<usize>> {

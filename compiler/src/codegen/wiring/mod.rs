@@ -1,0 +1,661 @@
+//! The per-map part of the generated module: constants, the component tables of
+//! every template, the public stateless API and the streaming `State` type.
+//!
+//! # Shape
+//!
+//! Components are deduplicated across decompositions (same template and places) and
+//! listed template by template in `static` tables: each template's components in
+//! groups of `L` (one per lane of the module's vector type `V`: `L = 1` on targets
+//! without float SIMD, 8 (`f32`) or 4 (`f64`) on the host; the last group padded with
+//! its first member), and per component the bit set of decompositions containing it.
+//! The generic driver `graphspn_runtime::__private::engine` runs over those tables and
+//! calls the template's straight-line functions (`sparse.rs`, or `template.rs` for
+//! templates without block structure), so the per-map code is a few calls whatever
+//! the map's size: only the tables grow with the map.
+//!
+//! # Passes and memory
+//!
+//! - value pass: every distinct component once; its value multiplied into the
+//!   accumulator (`Acc`: mantissa and exact power of two) of every decomposition
+//!   containing it;
+//! - marginals (stateless): the value pass, then a posterior pass evaluating every
+//!   component again with its backward sweep and adding its weighted local
+//!   posteriors into the output (no scratch that grows with the map);
+//! - MPE: a max-product value pass, then the best decomposition's components with
+//!   backtracking;
+//! - `State`: the caller owns per component its value and local posteriors, so an
+//!   update of one place re-evaluates only the groups containing it.
+//!
+//! # Where each part is emitted
+//!
+//! [`module`] decides the per-template evaluation plan once ([`plan_templates`]: block
+//! or per-node code, lanes, numerics, multiply-adds, stack frame) and numbers the
+//! components, posterior rows and lane groups ([`Layout`]); every pass reads those.
+//! Constants, types and tables are emitted here; the value pass, posterior pass, MPE
+//! and the rest of the stateless API in `api.rs`; the streaming state in `state.rs`.
+
+mod api;
+mod state;
+
+use proc_macro2::{Ident, TokenStream};
+use quote::{ToTokens, format_ident, quote};
+
+use crate::decompose::Decomposition;
+use crate::learn::Model;
+use crate::map::TopoMap;
+
+use super::analysis::{Numerics, Unique, numerics, unique_components};
+use super::emit::{Lit, array, hex, int, int_array, rt};
+use super::kernels;
+use super::sparse::{Counts, SparseCode};
+use super::template::TemplateCode;
+use super::{CodegenError, CodegenOptions, Precision, Vectorisation};
+
+fn sanitize(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    s.chars().take(24).collect()
+}
+
+/// What the generator knows about the generated code, beside its text.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CodeReport {
+    /// Components per call of kernel templates (`1` on targets without float SIMD).
+    pub lanes: usize,
+    /// Distinct components of the map.
+    pub components: usize,
+    /// Upper bound of the stack of `log_likelihood` (bytes), kernel frames included.
+    pub stack_log_likelihood: usize,
+    /// Upper bound of the stack of `marginals` (bytes).
+    pub stack_marginals: usize,
+    /// Upper bound of the stack of `mpe` (bytes).
+    pub stack_mpe: usize,
+    /// Upper bound of the stack of a `State` update plus query (bytes).
+    pub stack_state: usize,
+    /// Size of the streaming state (bytes).
+    pub state_bytes: usize,
+    /// Bytes of the `static` tables (component places, decomposition sets, slots).
+    pub table_bytes: usize,
+    /// Multiply(-add)s of one `log_likelihood` call (lane-vector operations).
+    pub macs_log_likelihood: usize,
+    /// Multiply(-add)s of one `marginals` call.
+    pub macs_marginals: usize,
+    /// Multiply(-add)s of one `mpe` call.
+    pub macs_mpe: usize,
+    /// Worst-case multiply(-add)s of one state update (`observe`) plus `marginals`.
+    pub macs_observe_marginals: usize,
+    /// Mean number of evaluation units (lane groups; single components in scalar
+    /// code) one state update re-evaluates, over the places.
+    pub units_per_update: f64,
+}
+
+/// What every emitter of the per-map part needs: sizes, scalar type, lanes.
+struct Context {
+    /// Scalar type and literals.
+    l: Lit,
+    /// Places.
+    n: usize,
+    /// Classes.
+    c: usize,
+    /// Decompositions.
+    d_count: usize,
+    /// Bytes of one scalar.
+    scalar: usize,
+    /// Lanes of block templates (`1`: scalar code).
+    simd_lanes: usize,
+}
+
+impl Context {
+    fn new(
+        map: &TopoMap,
+        model: &Model,
+        decs: &[Decomposition],
+        options: &CodegenOptions,
+    ) -> Result<Context, CodegenError> {
+        let n = map.num_places();
+        let d_count = decs.len();
+        if n > usize::from(u16::MAX) {
+            return Err(CodegenError::BadOption(format!(
+                "at most 65,535 places can be compiled, the map has {n}"
+            )));
+        }
+        if d_count > 64 {
+            return Err(CodegenError::BadOption(format!(
+                "at most 64 decompositions can be compiled, got {d_count}"
+            )));
+        }
+        Ok(Context {
+            l: Lit::new(options.precision),
+            n,
+            c: model.classes.len(),
+            d_count,
+            scalar: match options.precision {
+                Precision::F32 => 4,
+                Precision::F64 => 8,
+            },
+            simd_lanes: match (options.vectorisation, options.precision) {
+                (Vectorisation::Scalar, _) => 1,
+                (Vectorisation::Simd, Precision::F32) => 8,
+                (Vectorisation::Simd, Precision::F64) => 4,
+            },
+        })
+    }
+}
+
+/// One template's evaluation plan, shared by every pass: its functions, lanes,
+/// numerics, counts, stack frame, components and where they sit in the tables.
+struct Tpl {
+    prefix: String,
+    /// Name of its `static` driver table (`T0_STAR`).
+    stat: Ident,
+    /// Components per call.
+    lanes: usize,
+    /// Block code (lane type `V`) or per-node code (the scalar type).
+    blocks: bool,
+    vars: usize,
+    numerics: Numerics,
+    counts: Counts,
+    /// Extra stack of its functions beyond the arrays the driver holds (bytes).
+    frame: usize,
+    /// Indices into the unique components, in order.
+    members: Vec<usize>,
+    /// Its template functions.
+    code: TokenStream,
+    /// Index of its first component among all components.
+    first_component: usize,
+    /// Index of its first posterior row.
+    first_row: usize,
+    /// Index of its first lane group among all groups.
+    first_group: usize,
+}
+
+impl Tpl {
+    fn groups(&self) -> usize {
+        self.members.len().div_ceil(self.lanes)
+    }
+
+    /// Its `eval_group_<i>` method of the state.
+    fn eval_group(&self, ti: usize) -> Ident {
+        format_ident!("eval_group_{ti}")
+    }
+}
+
+/// Decides how each template with components in the map is evaluated (floor +
+/// sparse block code in lane groups when its SPN has block structure and linear
+/// numerics, per-node scalar code otherwise), emits its functions, and numbers its
+/// components, rows and groups.
+fn plan_templates(model: &Model, uniques: &[Unique], cx: &Context) -> Vec<Tpl> {
+    let mut tpls: Vec<Tpl> = Vec::new();
+    let (mut components, mut rows, mut groups) = (0, 0, 0);
+    for (k, spn) in model.spns.iter().enumerate() {
+        let mut members: Vec<usize> = (0..uniques.len())
+            .filter(|&u| uniques[u].template == k)
+            .collect();
+        // Lane groups of neighbouring components: the components of different
+        // decompositions that contain a place then tend to share a group, so a
+        // streaming update re-evaluates fewer groups.
+        members.sort_by_key(|&u| (uniques[u].places.iter().min().copied(), u));
+        if members.is_empty() {
+            continue;
+        }
+        // lint: the prefix of the template's identifiers (format_ident! at each use)
+        let prefix = format!("t{k}_{}", sanitize(&model.templates[k].name));
+        let plan = kernels::plan(spn, cx.c);
+        let num = numerics(spn, cx.l.precision(), plan.as_ref());
+        let vars = spn.num_vars();
+        let mut tpl = Tpl {
+            stat: format_ident!("{}", prefix.to_uppercase()),
+            prefix,
+            lanes: 1,
+            blocks: false,
+            vars,
+            numerics: num,
+            counts: Counts::default(),
+            frame: 0,
+            members,
+            code: TokenStream::new(),
+            first_component: components,
+            first_row: rows,
+            first_group: groups,
+        };
+        match (&plan, num) {
+            (Some(plan), Numerics::Linear { .. }) => block_code(&mut tpl, plan, cx),
+            _ => per_node_code(&mut tpl, spn, cx),
+        }
+        components += tpl.members.len();
+        rows += tpl.members.len() * tpl.vars;
+        groups += tpl.groups();
+        tpls.push(tpl);
+    }
+    tpls
+}
+
+/// Floor + sparse block functions in lane groups (`sparse.rs`).
+fn block_code(tpl: &mut Tpl, plan: &kernels::Plan, cx: &Context) {
+    let code = SparseCode {
+        prefix: tpl.prefix.clone(),
+        plan,
+    };
+    let mut ops = |(tokens, ops): (TokenStream, usize)| {
+        tpl.code.extend(tokens);
+        ops
+    };
+    let counts = Counts {
+        fwd: ops(code.fwd(&cx.l)),
+        post: ops(code.post(&cx.l)),
+        max: ops(code.max(&cx.l)),
+        mpe: ops(code.mpe(&cx.l)),
+    };
+    let sums: usize = plan.blocks.iter().map(|b| b.sums.len()).sum();
+    // Block values and adjoints, variable adjoints, MPE arguments and selections, and
+    // room for spills of the straight-line temporaries (Cortex-M4F, 230-place map:
+    // the Star's MPE function has a 4.1 KB frame, its posterior function 2.2 KB).
+    tpl.frame = (2 * sums + tpl.vars * cx.c) * cx.simd_lanes * cx.scalar + 10 * sums + 4096;
+    tpl.counts = counts;
+    tpl.lanes = cx.simd_lanes;
+    tpl.blocks = true;
+}
+
+/// Per-node scalar functions (`template.rs`).
+fn per_node_code(tpl: &mut Tpl, spn: &crate::spn::Spn, cx: &Context) {
+    let code = TemplateCode {
+        prefix: tpl.prefix.clone(),
+        spn,
+        numerics: tpl.numerics,
+        classes: cx.c,
+    };
+    for tokens in [
+        code.statics(&cx.l),
+        code.fwd(&cx.l),
+        code.post(&cx.l),
+        code.mpe(&cx.l),
+        code.max(&cx.l),
+    ] {
+        tpl.code.extend(tokens);
+    }
+    let edges: usize = spn
+        .nodes
+        .iter()
+        .map(|nd| match nd {
+            crate::spn::Node::Sum { children, .. } | crate::spn::Node::Product { children } => {
+                children.len()
+            }
+            crate::spn::Node::Leaf { .. } => 0,
+        })
+        .sum();
+    tpl.counts = Counts {
+        fwd: edges,
+        post: 3 * edges,
+        max: edges,
+        mpe: edges,
+    };
+    // One value per node (and one adjoint), plus spills.
+    tpl.frame = 2 * spn.nodes.len() * cx.scalar + 2048;
+}
+
+/// Where every component's values sit for the state: totals and, per place, the
+/// groups containing it and its posterior row in each decomposition.
+struct Layout {
+    /// Distinct components.
+    components: usize,
+    /// Posterior rows (one per component and variable).
+    rows: usize,
+    /// Lane groups of all templates.
+    groups: usize,
+    /// Per place: the global groups containing it.
+    place_units: Vec<Vec<usize>>,
+    /// Per place and decomposition: the place's posterior row.
+    place_slots: Vec<Vec<u32>>,
+}
+
+impl Layout {
+    fn new(tpls: &[Tpl], uniques: &[Unique], cx: &Context) -> Layout {
+        let mut place_units: Vec<Vec<usize>> = vec![Vec::new(); cx.n];
+        let mut place_slots: Vec<Vec<u32>> = vec![vec![u32::MAX; cx.d_count]; cx.n];
+        // Each component's template and position in it; the places' lists of groups
+        // follow the order of first appearance of the components.
+        let mut position = vec![None; uniques.len()];
+        for tp in tpls {
+            for (i, &u) in tp.members.iter().enumerate() {
+                position[u] = Some((tp, i));
+            }
+        }
+        for (un, pos) in uniques.iter().zip(position) {
+            let Some((tp, i)) = pos else { continue };
+            let unit = tp.first_group + i / tp.lanes;
+            for (v, &p) in un.places.iter().enumerate() {
+                if !place_units[p].contains(&unit) {
+                    place_units[p].push(unit);
+                }
+                let row = (tp.first_row + i * tp.vars + v) as u32;
+                for &d in &un.decs {
+                    place_slots[p][d] = row;
+                }
+            }
+        }
+        Layout {
+            components: tpls.iter().map(|tp| tp.members.len()).sum(),
+            rows: tpls.iter().map(|tp| tp.members.len() * tp.vars).sum(),
+            groups: tpls.iter().map(Tpl::groups).sum(),
+            place_units,
+            place_slots,
+        }
+    }
+
+    /// Longest list of groups of one place (the width of `PLACE_UNITS`).
+    fn max_units(&self) -> usize {
+        self.place_units
+            .iter()
+            .map(Vec::len)
+            .max()
+            .unwrap_or(0)
+            .max(1)
+    }
+}
+
+/// The whole module as tokens, and its report.
+pub fn module(
+    model: &Model,
+    map: &TopoMap,
+    decs: &[Decomposition],
+    options: &CodegenOptions,
+) -> Result<(TokenStream, CodeReport), CodegenError> {
+    let cx = Context::new(map, model, decs, options)?;
+    let uniques = unique_components(decs);
+    let tpls = plan_templates(model, &uniques, &cx);
+    let layout = Layout::new(&tpls, &uniques, &cx);
+    let (tables, table_bytes) = tables(&tpls, &uniques, &layout, &cx);
+    let report = report(&tpls, &layout, table_bytes, &cx, options)?;
+    let lane_items = lane_items(&tpls, &cx);
+    let constants = constants_and_types(model, map, &layout, &report, &cx);
+    let functions = tpls.iter().map(|tp| &tp.code);
+    let value_pass = api::value_pass(&tpls, &cx);
+    let stateless = api::stateless_api(&tpls, &cx);
+    let state = state::state_api(&tpls, &cx);
+    let compiled_map = api::compiled_map_impl(&cx);
+    let tokens = quote! {
+        #lane_items
+        #constants
+        #(#functions)*
+        #tables
+        #value_pass
+        #stateless
+        #state
+        #compiled_map
+    };
+    Ok((tokens, report))
+}
+
+/// The lane vector `V` of block templates (nothing when every template has
+/// per-node code).
+fn lane_items(tpls: &[Tpl], cx: &Context) -> TokenStream {
+    if !tpls.iter().any(|tp| tp.blocks) {
+        return TokenStream::new();
+    }
+    let rt = rt();
+    let t = cx.l.ty();
+    let v_type = match (cx.simd_lanes, cx.l.is_f32()) {
+        (1, _) => quote!(#t),
+        (_, true) => quote!(#rt::Lanes32),
+        (_, false) => quote!(#rt::Lanes64),
+    };
+    quote! {
+        use #rt::Lanes as _;
+        /// The lane vector of block templates.
+        type V = #v_type;
+    }
+}
+
+/// The public constants (sizes, stack bounds, multiply-adds, ids, class names) and
+/// the array types of the API.
+fn constants_and_types(
+    model: &Model,
+    map: &TopoMap,
+    layout: &Layout,
+    r: &CodeReport,
+    cx: &Context,
+) -> TokenStream {
+    let t = cx.l.ty();
+    let (n, c, d, lanes, components, rows) = (
+        int(cx.n),
+        int(cx.c),
+        int(cx.d_count),
+        int(cx.simd_lanes),
+        int(layout.components),
+        int(layout.rows),
+    );
+    let (sl, sm, sp, ss) = (
+        int(r.stack_log_likelihood),
+        int(r.stack_marginals),
+        int(r.stack_mpe),
+        int(r.stack_state),
+    );
+    let (ml, mm, mp, mo) = (
+        int(r.macs_log_likelihood),
+        int(r.macs_marginals),
+        int(r.macs_mpe),
+        int(r.macs_observe_marginals),
+    );
+    let ids = array(
+        map.places()
+            .map(|p| proc_macro2::Literal::u32_unsuffixed(p.id)),
+    );
+    let names = array(
+        model
+            .classes
+            .names()
+            .iter()
+            .map(|x| proc_macro2::Literal::string(x)),
+    );
+    quote! {
+        /// Number of places of the map (the length of every evidence array).
+        pub const NUM_PLACES: usize = #n;
+        /// Number of classes per place.
+        pub const NUM_CLASSES: usize = #c;
+        /// Number of decompositions mixed (with uniform weights) at the root.
+        pub const NUM_DECOMPOSITIONS: usize = #d;
+        /// Components evaluated per call of a template function (SIMD lanes; 1 = scalar code).
+        pub const LANES: usize = #lanes;
+        /// Distinct components (template copies) of the map.
+        pub const NUM_COMPONENTS: usize = #components;
+        /// Upper bound of the stack (bytes) of one `log_likelihood` or `labelled_log_likelihood` call.
+        pub const STACK_BYTES_LOG_LIKELIHOOD: usize = #sl;
+        /// Upper bound of the stack (bytes) of one `marginals` call.
+        pub const STACK_BYTES_MARGINALS: usize = #sm;
+        /// Upper bound of the stack (bytes) of one `mpe` call.
+        pub const STACK_BYTES_MPE: usize = #sp;
+        /// Upper bound of the stack (bytes) of one [`State`] update or query.
+        pub const STACK_BYTES_STATE: usize = #ss;
+        /// Bytes of one [`State`].
+        pub const STATE_BYTES: usize = core::mem::size_of::<State>();
+        /// Multiply(-add)s of one `log_likelihood` call (vector operations when `LANES > 1`).
+        pub const MACS_LOG_LIKELIHOOD: usize = #ml;
+        /// Multiply(-add)s of one `marginals` call.
+        pub const MACS_MARGINALS: usize = #mm;
+        /// Multiply(-add)s of one `mpe` call.
+        pub const MACS_MPE: usize = #mp;
+        /// Worst-case multiply(-add)s of one [`State::observe`] plus [`State::marginals`].
+        pub const MACS_OBSERVE_MARGINALS: usize = #mo;
+        /// User-facing id of each place, in place order (evidence row `p` is place `PLACE_IDS[p]`).
+        pub const PLACE_IDS: [u32; NUM_PLACES] = #ids;
+        /// Class names in class-index order.
+        pub const CLASS_NAMES: [&str; NUM_CLASSES] = #names;
+        /// The label meaning "unknown" in label arrays.
+        pub const UNKNOWN: u16 = u16::MAX;
+        /// Local evidence: one row of non-negative likelihoods (one per class) per place.
+        pub type Evidence = [[#t; NUM_CLASSES]; NUM_PLACES];
+        /// Marginals: `P(Y_p = c | evidence)` per place and class.
+        pub type Marginals = [[#t; NUM_CLASSES]; NUM_PLACES];
+        /// One class index per place (`UNKNOWN` = not labelled).
+        pub type Labels = [u16; NUM_PLACES];
+        static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
+        const NUM_ROWS: usize = #rows;
+    }
+}
+
+/// The `static` tables: per template the places of every lane group, the
+/// decompositions of every component and the driver's `Tpl`; per place its groups
+/// and posterior rows. Also their size in bytes.
+fn tables(tpls: &[Tpl], uniques: &[Unique], layout: &Layout, cx: &Context) -> (TokenStream, usize) {
+    let rt = rt();
+    let mut out = TokenStream::new();
+    let mut bytes = 0;
+    for tp in tpls {
+        let (name, lanes, v, c) = (&tp.stat, tp.lanes, int(tp.vars), int(cx.c));
+        let places = format_ident!("{}_PLACES", name);
+        let decs = format_ident!("{}_DECS", name);
+        let groups = (0..tp.groups()).map(|g| {
+            array((0..lanes).map(|ln| {
+                let u = tp
+                    .members
+                    .get(g * lanes + ln)
+                    .unwrap_or(&tp.members[g * lanes]);
+                int_array(uniques[*u].places.iter().copied())
+            }))
+        });
+        let groups = array(groups);
+        let masks = array(
+            tp.members
+                .iter()
+                .map(|&u| hex(uniques[u].decs.iter().map(|&d| 1u64 << d).sum())),
+        );
+        bytes += tp.groups() * lanes * tp.vars * 2 + tp.members.len() * 8;
+        let (g, m) = (int(tp.groups()), int(tp.members.len()));
+        let w = if tp.blocks {
+            quote!(V)
+        } else {
+            cx.l.ty().clone().into_token_stream()
+        };
+        let log = matches!(tp.numerics, Numerics::Log);
+        let lanes = int(lanes);
+        let [fwd, post, max, mpe] =
+            ["fwd", "post", "max", "mpe"].map(|f| format_ident!("{}_{}", tp.prefix, f));
+        out.extend(quote! {
+            static #places: [[[u16; #v]; #lanes]; #g] = #groups;
+            static #decs: [u64; #m] = #masks;
+            static #name: #rt::Tpl<#w, #lanes, #v, #c> = #rt::Tpl { places: &#places, decs: &#decs, log: #log, fwd: #fwd, post: #post, max: #max, mpe: #mpe };
+        });
+    }
+    let max_units = layout.max_units();
+    let unit_t = if layout.groups < usize::from(u16::MAX) {
+        format_ident!("u16")
+    } else {
+        format_ident!("u32")
+    };
+    let units = array(layout.place_units.iter().map(|us| {
+        let mut v: Vec<TokenStream> = us.iter().map(|&u| int(u).into_token_stream()).collect();
+        v.resize(max_units, quote!(#unit_t::MAX));
+        array(v)
+    }));
+    let slots = array(
+        layout
+            .place_slots
+            .iter()
+            .map(|ss| array(ss.iter().map(|&s| proc_macro2::Literal::u32_unsuffixed(s)))),
+    );
+    bytes += cx.n * max_units * 2 + cx.n * cx.d_count * 4;
+    let max_units = int(max_units);
+    out.extend(quote! {
+        /// Per place: the groups of components containing it (`u16::MAX`: none).
+        static PLACE_UNITS: [[#unit_t; #max_units]; NUM_PLACES] = #units;
+        /// Per place and decomposition: the place's row in the state's posteriors.
+        static PLACE_SLOTS: [[u32; NUM_DECOMPOSITIONS]; NUM_PLACES] = #slots;
+    });
+    (out, bytes)
+}
+
+/// Stack bounds, state and table bytes and multiply-adds of the generated code;
+/// fails when a stack bound exceeds the budget.
+fn report(
+    tpls: &[Tpl],
+    layout: &Layout,
+    table_bytes: usize,
+    cx: &Context,
+    options: &CodegenOptions,
+) -> Result<CodeReport, CodegenError> {
+    let (n, c, d_count, scalar) = (cx.n, cx.c, cx.d_count, cx.scalar);
+    // Driver frame: the gathered inputs and the posteriors (`vars × classes` vectors
+    // each), the gather's per-lane row sources (a reference, a scale and a tag: 24
+    // bytes), one variable's posteriors as `classes × lanes` scalars, and 512 bytes.
+    let driver = |tp: &Tpl| {
+        2 * tp.vars * c * tp.lanes * scalar + tp.vars * tp.lanes * 24 + c * tp.lanes * scalar + 512
+    };
+    let deepest = tpls
+        .iter()
+        .map(|tp| driver(tp) + tp.frame)
+        .max()
+        .unwrap_or(0);
+    let top = d_count * 32 + 1024;
+    let (u_total, rows) = (layout.components, layout.rows);
+    let state_bytes =
+        n * c * scalar + n * scalar + u_total * scalar + rows * c * scalar + d_count * scalar + 16;
+    let per_groups =
+        |f: &dyn Fn(&Tpl) -> usize| -> usize { tpls.iter().map(|tp| tp.groups() * f(tp)).sum() };
+    let macs_ll = per_groups(&|tp| tp.counts.fwd);
+    let macs_marg = macs_ll + per_groups(&|tp| tp.counts.post) + rows * c;
+    let macs_mpe = per_groups(&|tp| tp.counts.max)
+        + tpls
+            .iter()
+            .map(|tp| tp.members.len().div_ceil(d_count.max(1)) * tp.counts.mpe)
+            .sum::<usize>();
+    let worst_update = layout
+        .place_units
+        .iter()
+        .map(|units| {
+            units
+                .iter()
+                .map(|&unit| {
+                    let ti = tpls
+                        .iter()
+                        .rposition(|tp| tp.first_group <= unit)
+                        .unwrap_or(0);
+                    tpls[ti].counts.post
+                })
+                .sum::<usize>()
+        })
+        .max()
+        .unwrap_or(0);
+    let report = CodeReport {
+        lanes: cx.simd_lanes,
+        components: u_total,
+        stack_log_likelihood: top + deepest,
+        stack_marginals: top
+            + d_count * scalar
+            + deepest
+            + tpls
+                .iter()
+                .map(|tp| tp.vars * c * tp.lanes * scalar)
+                .max()
+                .unwrap_or(0),
+        stack_mpe: top + deepest,
+        stack_state: top + deepest,
+        state_bytes,
+        table_bytes,
+        macs_log_likelihood: macs_ll,
+        macs_marginals: macs_marg,
+        macs_mpe,
+        macs_observe_marginals: worst_update + u_total * 2 + rows * c,
+        units_per_update: layout.place_units.iter().map(Vec::len).sum::<usize>() as f64
+            / n.max(1) as f64,
+    };
+    let worst = report
+        .stack_marginals
+        .max(report.stack_log_likelihood)
+        .max(report.stack_mpe)
+        .max(report.stack_state);
+    if worst > options.stack_budget() {
+        return Err(CodegenError::BadOption(format!(
+            "the generated code needs up to {worst} bytes of stack per call, more than the budget of {} bytes (max_stack_bytes)",
+            options.stack_budget()
+        )));
+    }
+    Ok(report)
+}

@@ -1,0 +1,285 @@
+//! The streaming `State` of the generated module: a caller-owned cache of every
+//! component's value and local posteriors, updated one place at a time.
+
+use proc_macro2::TokenStream;
+use quote::quote;
+
+use super::super::emit::{int, rt};
+use super::{Context, Tpl};
+
+/// The `State` type, its constructor and its methods.
+pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
+    let ty = state_type(cx);
+    let cache = cache_methods(tpls, cx);
+    let updates = update_methods(cx);
+    let queries = query_methods(tpls, cx);
+    quote! {
+        #ty
+        impl State {
+            /// A state with no evidence at any place (all zeros in memory: rows of ones are
+            /// written by the first call that needs them).
+            pub const fn new() -> State {
+                State {
+                    ev: [[0.0; NUM_CLASSES]; NUM_PLACES],
+                    lns: [0.0; NUM_PLACES],
+                    val: [0.0; NUM_COMPONENTS],
+                    post: [[0.0; NUM_CLASSES]; NUM_ROWS],
+                    w: [0.0; NUM_DECOMPOSITIONS],
+                    lhat: 0.0,
+                    ok: false,
+                    ready: false,
+                }
+            }
+
+            /// The current evidence rows (all ones where a place has none).
+            pub fn evidence(&self) -> &Evidence {
+                if self.ready { &self.ev } else { &NO_EVIDENCE }
+            }
+
+            #cache
+            #updates
+            #queries
+        }
+    }
+}
+
+/// The `State` struct (with its documentation), `NO_EVIDENCE` and `Default`.
+fn state_type(cx: &Context) -> TokenStream {
+    let t = cx.l.ty();
+    quote! {
+        /// Streaming inference for a robot that gets evidence one place at a time: the
+        /// caller-owned cache of every component's value and local posteriors (fixed size,
+        /// [`STATE_BYTES`] bytes, nothing on the heap; `const` constructor, so it can live in a
+        /// `static` or `.bss`).
+        ///
+        /// An update (`set_evidence`, `observe`, `clear_evidence`) re-evaluates only the
+        /// components containing that place (at most one per decomposition) and re-mixes the
+        /// decompositions from the cached component values (never by subtracting, so
+        /// thousands of updates do not drift). Costs: an update, about
+        /// [`MACS_OBSERVE_MARGINALS`] multiply-adds with `marginals`; `log_likelihood` and
+        /// `marginal` O(1) and O(D·C); `marginals` O(components·places·C); `mpe` and
+        /// `labelled_log_likelihood` a full stateless pass on the state's evidence. The first
+        /// call after [`State::new`] evaluates every component once. [`State::new`] is all
+        /// zeros, so a `static` state is placed in `.bss` (no initial image in flash).
+        /// No evidence at a place means a row of ones.
+        #[derive(Clone)]
+        pub struct State {
+            ev: Evidence,
+            lns: [#t; NUM_PLACES],
+            val: [#t; NUM_COMPONENTS],
+            post: [[#t; NUM_CLASSES]; NUM_ROWS],
+            w: [#t; NUM_DECOMPOSITIONS],
+            lhat: #t,
+            ok: bool,
+            ready: bool,
+        }
+
+        /// The rows of a state without any evidence.
+        const NO_EVIDENCE: Evidence = [[1.0; NUM_CLASSES]; NUM_PLACES];
+
+        impl Default for State {
+            fn default() -> Self {
+                Self::new()
+            }
+        }
+    }
+}
+
+/// The cache's private methods: evaluating one lane group of a template, one unit
+/// (global group), re-mixing the decompositions, refreshing everything, storing a row.
+fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
+    let (rt, t) = (rt(), cx.l.ty());
+    let mut eval_fns = TokenStream::new();
+    let mut dispatch = TokenStream::new();
+    let mut values = TokenStream::new();
+    let mut refresh = TokenStream::new();
+    for (ti, tp) in tpls.iter().enumerate() {
+        let (f, stat) = (tp.eval_group(ti), &tp.stat);
+        let (first_component, first_row) = (int(tp.first_component), int(tp.first_row));
+        let (first_group, end, groups) = (
+            int(tp.first_group),
+            int(tp.first_group + tp.groups()),
+            int(tp.groups()),
+        );
+        eval_fns.extend(quote! {
+            #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, g, v, p); } }
+        });
+        dispatch.extend(quote!(if unit < #end { self.#f(unit - #first_group); } else));
+        values.extend(quote! {
+            if let Some(v) = self.val.get(#first_component..) { #rt::state_values(&#stat, v, &mut acc); }
+        });
+        refresh.extend(quote!(for g in 0..#groups { self.#f(g); }));
+    }
+    quote! {
+        #eval_fns
+
+        fn eval_unit(&mut self, unit: usize) {
+            #dispatch {}
+        }
+
+        /// Re-mixes the decompositions from the cached component values.
+        fn remix(&mut self) {
+            let mut acc = [#rt::Acc::ONE; NUM_DECOMPOSITIONS];
+            #values
+            match #rt::mix(&acc) {
+                Some((l, w)) => {
+                    self.lhat = l;
+                    self.w = w;
+                    self.ok = true;
+                }
+                None => self.ok = false,
+            }
+        }
+
+        /// Evaluates every component (after `set_all`, or on the first use of a new state).
+        fn refresh(&mut self) {
+            #refresh
+            self.remix();
+            self.ready = true;
+        }
+
+        /// A new state gets its rows of ones and every component evaluated.
+        fn fresh(&mut self) {
+            if !self.ready {
+                self.ev = NO_EVIDENCE;
+                self.lns = [0.0; NUM_PLACES];
+                self.refresh();
+            }
+        }
+
+        /// Stores `row` for `place` and re-evaluates the components containing it.
+        fn store(&mut self, place: usize, row: [#t; NUM_CLASSES], ln_scale: #t) {
+            self.fresh();
+            if let (Some(r), Some(s)) = (self.ev.get_mut(place), self.lns.get_mut(place)) {
+                *r = row;
+                *s = ln_scale;
+            }
+            if let Some(units) = PLACE_UNITS.get(place) {
+                for &u in units {
+                    self.eval_unit(u as usize);
+                }
+            }
+            self.remix();
+        }
+    }
+}
+
+/// The evidence updates: `set_evidence`, `observe`, `clear_evidence`, `set_all`.
+fn update_methods(cx: &Context) -> TokenStream {
+    let (rt, t) = (rt(), cx.l.ty());
+    let check = cx.l.helper("check");
+    let err = quote!(::graphspn_runtime::EvidenceError);
+    quote! {
+        fn place_index(place: usize) -> Result<u32, #err> {
+            PLACE_IDS.get(place).copied().ok_or(::graphspn_runtime::EvidenceError::WrongShape { place, expected: NUM_PLACES, found: place })
+        }
+
+        /// Sets the evidence row of `place` (place index) and updates the cache. An invalid
+        /// row (NaN, infinite, negative, all zero) is rejected and nothing changes.
+        pub fn set_evidence(&mut self, place: usize, row: &[#t; NUM_CLASSES]) -> Result<(), #err> {
+            let id = Self::place_index(place)?;
+            #rt::check_row(row, place, id)?;
+            let s = row.iter().copied().fold(0.0, #t::max);
+            self.store(place, *row, #rt::Real::ln(s));
+            Ok(())
+        }
+
+        /// Fuses a new observation into the place's row (element-wise product, renormalised
+        /// to a largest entry of 1, so repeated observations never underflow) and updates
+        /// the cache. An invalid row, or one that leaves the place no class at all, is
+        /// rejected and nothing changes.
+        pub fn observe(&mut self, place: usize, row: &[#t; NUM_CLASSES]) -> Result<(), #err> {
+            let id = Self::place_index(place)?;
+            #rt::check_row(row, place, id)?;
+            self.fresh();
+            let old = match self.ev.get(place) {
+                Some(r) => *r,
+                None => [1.0; NUM_CLASSES],
+            };
+            match #rt::fuse_rows(&old, row) {
+                Some(f) => {
+                    self.store(place, f, 0.0);
+                    Ok(())
+                }
+                None => Err(::graphspn_runtime::EvidenceError::NoMass { place, place_id: u64::from(id) }),
+            }
+        }
+
+        /// Removes the evidence of `place` (back to a row of ones) and updates the cache.
+        pub fn clear_evidence(&mut self, place: usize) -> Result<(), #err> {
+            Self::place_index(place)?;
+            self.store(place, [1.0; NUM_CLASSES], 0.0);
+            Ok(())
+        }
+
+        /// Replaces all evidence and re-evaluates every component.
+        pub fn set_all(&mut self, e: &Evidence) -> Result<(), #err> {
+            #check(e, &PLACE_IDS)?;
+            self.ev = *e;
+            for (s, row) in self.lns.iter_mut().zip(e) {
+                *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
+            }
+            self.refresh();
+            Ok(())
+        }
+    }
+}
+
+/// The queries answered from the cache (`log_likelihood`, `marginals`, `marginal`) or
+/// by a stateless pass on the state's evidence (`mpe`, `labelled_log_likelihood`).
+fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
+    let (rt, t) = (rt(), cx.l.ty());
+    let err = quote!(::graphspn_runtime::EvidenceError);
+    let marginal_calls: TokenStream = tpls
+        .iter()
+        .map(|tp| {
+            let (stat, first_row) = (&tp.stat, int(tp.first_row));
+            quote!(if let Some(p) = self.post.get(#first_row..) { #rt::state_marginals(&#stat, p, &self.w, out); })
+        })
+        .collect();
+    quote! {
+        /// Natural log of the likelihood of the current evidence (from the cache).
+        pub fn log_likelihood(&mut self) -> Result<#t, #err> {
+            self.fresh();
+            let scale: #t = self.lns.iter().copied().sum();
+            if self.ok && scale + self.lhat > #t::NEG_INFINITY {
+                Ok(scale + self.lhat)
+            } else {
+                Err(::graphspn_runtime::EvidenceError::ZeroLikelihood)
+            }
+        }
+
+        /// Writes the marginals of every place into `out` from the cache and returns the
+        /// log-likelihood.
+        pub fn marginals(&mut self, out: &mut Marginals) -> Result<#t, #err> {
+            let l = self.log_likelihood()?;
+            for row in out.iter_mut() {
+                *row = [0.0; NUM_CLASSES];
+            }
+            #marginal_calls
+            Ok(l)
+        }
+
+        /// Writes the marginal of one place into `row` (O(D·C) from the cache).
+        pub fn marginal(&mut self, place: usize, row: &mut [#t; NUM_CLASSES]) -> Result<(), #err> {
+            Self::place_index(place)?;
+            self.log_likelihood()?;
+            if let Some(slots) = PLACE_SLOTS.get(place) {
+                #rt::mix_rows(&self.post, slots, &self.w, row);
+            }
+            Ok(())
+        }
+
+        /// The MPE labelling of the current evidence (a full max-product pass).
+        pub fn mpe(&mut self, labels: &mut Labels) -> Result<#t, #err> {
+            mpe_unchecked(self.evidence(), labels)
+        }
+
+        /// The log-likelihood of the current evidence with labelled places restricted to
+        /// their labels (a full value pass).
+        pub fn labelled_log_likelihood(&mut self, labels: &Labels) -> Result<#t, #err> {
+            #rt::check_labels(labels, NUM_CLASSES)?;
+            labelled_log_likelihood_unchecked(labels, self.evidence())
+        }
+    }
+}

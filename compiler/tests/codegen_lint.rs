@@ -1,0 +1,156 @@
+//! Source rules of the code generator (`compiler/src/codegen`), checked on its text:
+//! - no Rust code is assembled as strings: every `format!` / `write!` / `writeln!` /
+//!   `format_args!` / `push_str` is either an error message (`what: format!(..)`,
+//!   `BadOption(format!(..))`) or marked `// lint: <why>` on the line above (the
+//!   spelling of one numeric literal, the `@generated` comment line, a file name);
+//! - the emitters use `quote!`;
+//! - no function is longer than 100 lines.
+
+use std::path::{Path, PathBuf};
+
+/// The `.rs` files below `dir`, sorted, with their text.
+fn sources(dir: &Path) -> Vec<(PathBuf, String)> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let mut entries: Vec<_> = std::fs::read_dir(dir)
+            .expect("source folder")
+            .map(|e| e.expect("entry").path())
+            .collect();
+        entries.sort();
+        for p in entries {
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|e| e == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    let mut paths = vec![];
+    walk(dir, &mut paths);
+    paths
+        .into_iter()
+        .map(|p| {
+            let text = std::fs::read_to_string(&p).expect("read");
+            (p, text)
+        })
+        .collect()
+}
+
+/// The generator's sources.
+fn codegen_sources() -> Vec<(PathBuf, String)> {
+    let out = sources(&Path::new(env!("CARGO_MANIFEST_DIR")).join("src/codegen"));
+    assert!(out.len() >= 8, "codegen sources not found");
+    out
+}
+
+const TEXT_MACROS: [&str; 5] = [
+    "format!(",
+    "write!(",
+    "writeln!(",
+    "format_args!(",
+    "push_str(",
+];
+const ERROR_MESSAGES: [&str; 3] = ["what: format!(", "BadOption(format!(", "Internal(format!("];
+
+#[test]
+fn no_rust_code_assembled_as_strings() {
+    let mut bad = vec![];
+    for (path, text) in codegen_sources() {
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            if !TEXT_MACROS.iter().any(|m| code.contains(m)) {
+                continue;
+            }
+            let marked = i > 0 && lines[i - 1].trim_start().starts_with("// lint:");
+            let message = ERROR_MESSAGES.iter().any(|m| code.contains(m));
+            if !marked && !message {
+                bad.push(format!("{}:{}: {}", path.display(), i + 1, line.trim()));
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "text assembly in compiler/src/codegen (build tokens with quote!, or mark a \
+         non-code string with `// lint: why` on the line above):\n{}",
+        bad.join("\n")
+    );
+}
+
+#[test]
+fn emitters_use_quote() {
+    for name in [
+        "sparse.rs",
+        "template.rs",
+        "wiring/mod.rs",
+        "wiring/api.rs",
+        "wiring/state.rs",
+    ] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("src/codegen")
+            .join(name);
+        let text = std::fs::read_to_string(&path).expect("read");
+        assert!(text.contains("quote!"), "{name} does not use quote!");
+        assert!(!text.contains("std::fmt::Write"), "{name} writes text");
+    }
+}
+
+#[test]
+fn no_function_over_100_lines() {
+    let mut long = vec![];
+    for (path, text) in codegen_sources() {
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let t = line.trim_start();
+            let is_fn = ["fn ", "pub fn ", "pub(super) fn ", "pub(crate) fn "]
+                .iter()
+                .any(|p| t.starts_with(p));
+            if !is_fn {
+                continue;
+            }
+            // The function ends at the first later line with its indentation that
+            // closes a brace.
+            let indent = line.len() - t.len();
+            let end = lines[i + 1..].iter().position(|l| {
+                l.len() > indent && l[..indent].trim().is_empty() && l[indent..].starts_with('}')
+            });
+            if let Some(end) = end
+                && end + 2 > 100
+            {
+                long.push(format!("{}:{}: {} lines", path.display(), i + 1, end + 2));
+            }
+        }
+    }
+    assert!(
+        long.is_empty(),
+        "functions over 100 lines:\n{}",
+        long.join("\n")
+    );
+}
+
+/// A `cargo machete`-style check of this crate: every `[dependencies]` entry of
+/// `compiler/Cargo.toml` is named in `compiler/src` (`name::` or `use name`).
+#[test]
+fn no_unused_dependency() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).expect("Cargo.toml");
+    let deps: Vec<String> = manifest
+        .split("\n[")
+        .find(|s| s.starts_with("dependencies]"))
+        .expect("[dependencies]")
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(['=', '.']).next())
+        .map(|n| n.trim().replace('-', "_"))
+        .filter(|n| !n.is_empty() && !n.starts_with('#'))
+        .collect();
+    assert!(deps.iter().any(|d| d == "quote"), "dependencies: {deps:?}");
+    let sources: String = sources(&root.join("src"))
+        .into_iter()
+        .map(|(_, text)| text)
+        .collect();
+    let unused: Vec<&String> = deps
+        .iter()
+        .filter(|d| !sources.contains(&format!("{d}::")) && !sources.contains(&format!("use {d}")))
+        .collect();
+    assert!(unused.is_empty(), "unused dependencies: {unused:?}");
+}
