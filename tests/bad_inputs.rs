@@ -1551,6 +1551,40 @@ fn corpus(root: &Path) -> Vec<Case> {
             1,
             &["model.json", "settings"],
         ),
+        case(
+            "infer unknown strategy",
+            &[
+                "infer",
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/floor.json",
+                "--strategy",
+                "greedy",
+            ],
+            2,
+            &["--strategy", "greedy", "paper or cover"],
+        ),
+        case(
+            "infer unknown mixing",
+            &[
+                "infer",
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/floor.json",
+                "--mixing",
+                "vote",
+            ],
+            2,
+            &["--mixing", "vote", "posterior or average"],
+        ),
+        case(
+            "train temperature 0",
+            &["train", "--out", "{root}/o.json", "--temperature", "0"],
+            1,
+            &["--temperature", "finite and > 0"],
+        ),
         // evaluate
         case(
             "evaluate maps missing",

@@ -252,3 +252,87 @@ fn evaluate_runs_the_protocol_on_a_building_the_data_folder_does_not_hold() {
     );
     assert!(!dir.path().join("bad").exists());
 }
+
+#[test]
+fn the_validated_graphspn_options_are_on_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    // train --temperature: recorded in the model's settings.
+    let model = dir.path().join("model.json");
+    run_ok(
+        bin()
+            .args([
+                "train",
+                "--buildings",
+                "Freiburg,Stockholm",
+                "--epochs",
+                "2",
+            ])
+            .args(["--temperature", "0.8", "--out"])
+            .arg(&model),
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["settings"]["temperature"], 0.8);
+    // infer --strategy cover --mixing average: normalised rows, and not the posterior
+    // mix (with evidence, the decompositions' posterior weights differ).
+    let ev = dir.path().join("ev.json");
+    let rows: Vec<String> = (0..40)
+        .map(|i| {
+            let mut r = vec!["0.02"; 10];
+            r[i % 10] = "0.8";
+            format!("\"{i}\": [{}]", r.join(", "))
+        })
+        .collect();
+    std::fs::write(
+        &ev,
+        format!("{{\"format\": 1, \"evidence\": {{{}}}}}", rows.join(", ")),
+    )
+    .unwrap();
+    let infer = |mixing: &str| -> serde_json::Value {
+        let text = run_ok(
+            bin()
+                .args(["infer", "--model"])
+                .arg(&model)
+                .arg("--map")
+                .arg(demo("floor.json"))
+                .arg("--evidence")
+                .arg(&ev)
+                .args(["--decompositions", "4"])
+                .args(["--strategy", "cover", "--mixing", mixing]),
+        );
+        serde_json::from_str(&text).unwrap()
+    };
+    let (avg, post) = (infer("average"), infer("posterior"));
+    assert_eq!(avg["mixing"], "average");
+    assert_eq!(avg["log_likelihood"], post["log_likelihood"]);
+    let rows = |v: &serde_json::Value| -> Vec<Vec<f64>> {
+        v["places"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| serde_json::from_value(p["probs"].clone()).unwrap())
+            .collect()
+    };
+    let (a, p) = (rows(&avg), rows(&post));
+    assert!(a.iter().all(|r| (r.iter().sum::<f64>() - 1.0).abs() < 1e-9));
+    assert!(
+        a.iter()
+            .zip(&p)
+            .any(|(x, y)| x.iter().zip(y).any(|(u, v)| (u - v).abs() > 1e-6))
+    );
+    // decompose --strategy cover writes decompositions compile accepts.
+    let decs = dir.path().join("d.json");
+    run_ok(
+        bin()
+            .args(["decompose", "--model"])
+            .arg(&model)
+            .args(["--map", "Saarbrucken/seq1_cloudy1", "--count", "2"])
+            .args(["--strategy", "cover", "--out"])
+            .arg(&decs),
+    );
+    assert!(
+        std::fs::read_to_string(&decs)
+            .unwrap()
+            .contains("\"components\"")
+    );
+}

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use graphspn_compiler::decompose::Decomposition;
+use graphspn_compiler::decompose::{Decomposition, DecompositionStrategy};
 use graphspn_compiler::instance::Instance;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::cold::Dropped;
@@ -146,6 +146,12 @@ pub fn check_decomposition_count(flag: &str, count: usize) -> Result<()> {
     Ok(())
 }
 
+/// Parses `--strategy` (`paper` or `cover`).
+pub fn parse_strategy(s: &str) -> Result<DecompositionStrategy, String> {
+    DecompositionStrategy::from_name(s)
+        .ok_or_else(|| format!("unknown decomposition strategy {s:?}: give paper or cover"))
+}
+
 /// Largest `--decompositions` accepted by `infer`, `instance`, `compile` and `decompose`.
 pub const MAX_DECOMPOSITIONS: usize = 1000;
 
@@ -157,6 +163,7 @@ pub fn decompositions_for(
     file: Option<&Path>,
     count: usize,
     seed: u64,
+    strategy: DecompositionStrategy,
 ) -> Result<Vec<Decomposition>> {
     match file {
         Some(f) => {
@@ -171,7 +178,7 @@ pub fn decompositions_for(
                 count,
                 candidates: (3 * count).max(15),
                 seed,
-                ..graphspn_compiler::decompose::DecompositionParams::default()
+                strategy,
             };
             Ok(
                 graphspn_compiler::decompose::decompose_best(map, &model.templates, &dp)

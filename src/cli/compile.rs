@@ -9,9 +9,11 @@ use graphspn_compiler::codegen::{
 };
 
 use super::common::{
-    check_decomposition_count, declare_map, decompositions_for, load_model, read_map,
+    check_decomposition_count, declare_map, decompositions_for, load_model, parse_strategy,
+    read_map,
 };
 use super::output::{Outputs, write_files};
+use graphspn_compiler::decompose::DecompositionStrategy;
 
 /// Arguments of `graphspn compile`.
 #[derive(Args)]
@@ -37,6 +39,10 @@ pub struct CompileArgs {
     /// Seed of the decompositions.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// How decompositions are drawn: `paper` (the authors' scheme) or `cover` (frontier
+    /// places join their neighbour's component rather than stay alone).
+    #[arg(long, default_value = "paper", value_parser = parse_strategy, conflicts_with = "decompositions")]
+    strategy: DecompositionStrategy,
     /// Number of decompositions mixed at the root (1..=1000).
     #[arg(long, default_value_t = 5)]
     count: usize,
@@ -102,7 +108,14 @@ pub fn run(args: CompileArgs) -> Result<()> {
     let model = load_model(&args.model)?;
     let map = read_map(&map_path)?.map;
     let decompositions = match &args.decompositions {
-        Some(f) => Some(decompositions_for(&model, &map, Some(f), 1, 0)?),
+        Some(f) => Some(decompositions_for(
+            &model,
+            &map,
+            Some(f),
+            1,
+            0,
+            DecompositionStrategy::Paper,
+        )?),
         None => None,
     };
     let mut b = Builder::new(&args.model, &args.map)
@@ -125,7 +138,7 @@ pub fn run(args: CompileArgs) -> Result<()> {
     }
     b = match decompositions {
         Some(d) => b.decompositions(d),
-        None => b.seed(args.seed).count(args.count),
+        None => b.seed(args.seed).count(args.count).strategy(args.strategy),
     };
     let inputs = b.load()?;
     let map_json = inputs.map.to_json();

@@ -7,9 +7,11 @@ use anyhow::Result;
 use clap::Args;
 
 use super::common::{
-    check_decomposition_count, data_dir, declare_map, decompositions_for, load_model, read_map,
+    check_decomposition_count, data_dir, declare_map, decompositions_for, load_model,
+    parse_strategy, read_map,
 };
 use super::output::{Outputs, write_files};
+use graphspn_compiler::decompose::DecompositionStrategy;
 
 /// Arguments of `graphspn decompose`.
 #[derive(Args)]
@@ -35,6 +37,10 @@ pub struct DecomposeArgs {
     /// Seed of the decompositions.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// How decompositions are drawn: `paper` (the authors' scheme) or `cover` (frontier
+    /// places join their neighbour's component rather than stay alone).
+    #[arg(long, default_value = "paper", value_parser = parse_strategy)]
+    strategy: DecompositionStrategy,
     /// Output decompositions file (JSON).
     #[arg(long)]
     out: PathBuf,
@@ -52,7 +58,14 @@ pub fn run(args: DecomposeArgs) -> Result<()> {
     outputs.file("--out", &args.out)?;
     let model = load_model(&args.model)?;
     let loaded = read_map(&map_path)?;
-    let decs = decompositions_for(&model, &loaded.map, None, args.count, args.seed)?;
+    let decs = decompositions_for(
+        &model,
+        &loaded.map,
+        None,
+        args.count,
+        args.seed,
+        args.strategy,
+    )?;
     let text = graphspn_compiler::decompose::file::to_json(&decs, &loaded.map, &model.templates)?;
     write_files(&[(&args.out, text.as_bytes())])?;
     eprintln!(

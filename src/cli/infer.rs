@@ -21,9 +21,16 @@ use serde_json::json;
 
 use super::common::{
     check_component_memory, check_decomposition_count, component_instance_of, data_dir,
-    declare_map, decompositions_for, load_model, read_map,
+    declare_map, decompositions_for, load_model, parse_strategy, read_map,
 };
 use super::output::{Outputs, write_files};
+use graphspn_compiler::decompose::DecompositionStrategy;
+use graphspn_compiler::instance::Mixing;
+
+/// Parses `--mixing` (`posterior` or `average`).
+fn parse_mixing(s: &str) -> Result<Mixing, String> {
+    Mixing::from_name(s).ok_or_else(|| format!("unknown mixing {s:?}: give posterior or average"))
+}
 
 /// Version of the evidence file format.
 pub const EVIDENCE_FORMAT: u32 = 1;
@@ -65,9 +72,18 @@ pub struct InferArgs {
     /// Seed of the decompositions.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// How decompositions are drawn: `paper` (the authors' scheme) or `cover` (frontier
+    /// places join their neighbour's component rather than stay alone).
+    #[arg(long, default_value = "paper", value_parser = parse_strategy, conflicts_with = "decompositions_file")]
+    strategy: DecompositionStrategy,
     /// Write the result JSON here instead of standard output.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// How the decompositions' marginals are mixed: `posterior` (the exact marginals
+    /// of the instance GraphSPN) or `average` (the mean of each decomposition's exact
+    /// marginals; the log-likelihood stays the mixture's).
+    #[arg(long, default_value = "posterior", value_parser = parse_mixing)]
+    mixing: Mixing,
     /// Also compute the max-product (MPE) labelling.
     #[arg(long)]
     mpe: bool,
@@ -236,13 +252,16 @@ pub fn run(args: InferArgs) -> Result<()> {
         args.decompositions_file.as_deref(),
         args.decompositions,
         args.seed,
+        args.strategy,
     )?;
     let count = decs.len();
     // Component-wise evaluation against the shared template networks: memory linear
     // in places (the explicit instance SPN copies every weight per component).
     let mut im = component_instance_of(&model, map, decs)?;
     im.set_all_evidence(&rows).context("setting the evidence")?;
-    let m = im.marginals().context("computing marginals")?;
+    let m = im
+        .marginals_mixed(args.mixing)
+        .context("computing marginals")?;
     let names = map.classes.names();
     let argmax = |row: &[f64]| {
         let mut best = 0;
@@ -264,6 +283,7 @@ pub fn run(args: InferArgs) -> Result<()> {
         "classes": names,
         "decompositions": count,
         "seed": args.seed,
+        "mixing": args.mixing.name(),
         "log_likelihood": m.log_likelihood,
         "places": places,
     });

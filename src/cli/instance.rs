@@ -7,9 +7,10 @@ use clap::{Args, ValueEnum};
 
 use super::common::{
     check_decomposition_count, data_dir, declare_map, decompositions_for, instance_of, load_model,
-    read_map,
+    parse_strategy, read_map,
 };
 use super::output::{Outputs, emit};
+use graphspn_compiler::decompose::DecompositionStrategy;
 
 /// Output format of `graphspn instance`.
 #[derive(Clone, Copy, ValueEnum)]
@@ -50,6 +51,10 @@ pub struct InstanceArgs {
     /// Seed of the decompositions.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// How decompositions are drawn: `paper` (the authors' scheme) or `cover` (frontier
+    /// places join their neighbour's component rather than stay alone).
+    #[arg(long, default_value = "paper", value_parser = parse_strategy, conflicts_with = "decompositions_file")]
+    strategy: DecompositionStrategy,
     /// Output file (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -79,6 +84,7 @@ pub fn run(args: InstanceArgs) -> Result<()> {
         args.decompositions_file.as_deref(),
         args.decompositions,
         args.seed,
+        args.strategy,
     )?;
     let inst = instance_of(&model, map, decs)?;
     let names: Vec<String> = model.templates.iter().map(|t| t.name.clone()).collect();

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use graphspn_compiler::learn::{Progress, TrainingSettings, train_model};
 use graphspn_compiler::template::Template;
@@ -38,6 +38,10 @@ pub struct TrainArgs {
     /// Decompositions of each training map per template (at least 1).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     decompositions_per_map: Option<u32>,
+    /// Template temperature: every sum weight raised to this power and renormalised
+    /// after training (< 1 flattens the learned statistics; default 1, none).
+    #[arg(long)]
+    temperature: Option<f64>,
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
@@ -60,6 +64,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
     }
     if let Some(d) = args.decompositions_per_map {
         settings.decompositions_per_map = d as usize;
+    }
+    if let Some(t) = args.temperature {
+        graphspn_compiler::learn::check_temperature(t).context("--temperature")?;
+        settings.temperature = t;
     }
     let start = Instant::now();
     let (model, trainings) = train_model(&maps, &Template::paper_set(), &settings, Progress::Auto)?;

@@ -13,7 +13,9 @@ use super::{
     CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation, generate_with_report,
 };
 use crate::decompose::file::DecompositionFileError;
-use crate::decompose::{DecomposeError, Decomposition, DecompositionParams, decompose_best};
+use crate::decompose::{
+    DecomposeError, Decomposition, DecompositionParams, DecompositionStrategy, decompose_best,
+};
 use crate::learn::{Model, ModelFileError};
 use crate::map::{MapError, TopoMap, cold};
 
@@ -319,6 +321,14 @@ impl Builder {
     /// Number of random candidate partitions scored by [`decompose_best`] (default 15).
     pub fn candidates(mut self, candidates: usize) -> Self {
         self.seeded().candidates = candidates;
+        self
+    }
+
+    /// How seeded decompositions are drawn and ranked (default
+    /// [`DecompositionStrategy::Paper`]; [`DecompositionStrategy::Cover`] leaves fewer
+    /// places alone in singleton components).
+    pub fn strategy(mut self, strategy: DecompositionStrategy) -> Self {
+        self.seeded().strategy = strategy;
         self
     }
 
