@@ -278,7 +278,7 @@ fn the_validated_graphspn_options_are_on_the_command_line() {
     let ev = dir.path().join("ev.json");
     let rows: Vec<String> = (0..40)
         .map(|i| {
-            let mut r = vec!["0.02"; 10];
+            let mut r = ["0.02"; 10];
             r[i % 10] = "0.8";
             format!("\"{i}\": [{}]", r.join(", "))
         })
