@@ -1,14 +1,14 @@
 //! End to end: generated modules are built into a temporary crate, run on evidence,
 //! and compared with brute-force enumeration over all labellings.
 
-mod codegen_common;
+mod common;
 
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
-use codegen_common::*;
+use common::codegen::*;
 use graphspn_compiler::codegen::{CodegenOptions, Precision, Vectorisation, generate};
 use graphspn_compiler::decompose::Decomposition;
 use graphspn_compiler::learn::Model;

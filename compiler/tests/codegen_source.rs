@@ -1,8 +1,8 @@
 //! Properties of the generated source text: snapshot, determinism, forbidden constructs, errors.
 
-mod codegen_common;
+mod common;
 
-use codegen_common::*;
+use common::codegen::*;
 use graphspn_compiler::codegen::{
     CodegenError, CodegenOptions, Precision, Vectorisation, generate,
 };

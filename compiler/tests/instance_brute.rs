@@ -2,14 +2,14 @@
 //! log-likelihood of partial labellings and MPE equal what the definition
 //! P(y) = mean_d Π_components T(y_component) gives over all labellings.
 
-mod instance_util;
+mod common;
 
+use common::instance::{all_labellings, random_model, random_rows, tiny_map, value};
 use graphspn_compiler::decompose::Decomposition;
 use graphspn_compiler::instance::{Instance, InstanceModel, InstanceParams};
 use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::ClassId;
-use instance_util::{all_assignments, random_model, random_rows, tiny_map, value};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -69,7 +69,7 @@ fn marginals_and_likelihood_match_enumeration() {
         let rows = random_rows(n, c, &mut rng);
         let ev = Evidence::from_rows(rows.clone());
         let decs = im.instance.decompositions.clone();
-        let ys = all_assignments(n, c as u16);
+        let ys = all_labellings(n, c as u16);
         let joint: Vec<f64> = ys
             .iter()
             .map(|y| {
@@ -152,7 +152,7 @@ fn mpe_matches_enumeration_for_selective_templates() {
         let ev = Evidence::from_rows(rows.clone());
         let decs = im.instance.decompositions.clone();
         let dn = decs.len() as f64;
-        let ys = all_assignments(n, c as u16);
+        let ys = all_labellings(n, c as u16);
         // Max over (decomposition, labelling) of that decomposition's weighted term.
         let mut best = 0.0f64;
         for y in &ys {

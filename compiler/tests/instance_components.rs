@@ -4,10 +4,11 @@
 //! answers after random update sequences equal a fresh evaluation bit for bit; growth
 //! follows `Instance::grow`.
 
-mod instance_util;
+mod common;
 
 use std::path::PathBuf;
 
+use common::instance::{classes, random_model, random_rows, tiny_map};
 use graphspn_compiler::decompose::synthetic::random_connected_map;
 use graphspn_compiler::instance::{
     ComponentInstance, Instance, InstanceModel, InstanceParams, InstanceQueryError, Mixing,
@@ -16,7 +17,6 @@ use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::{ClassId, TopoMap, cold};
 use graphspn_compiler::spn::Node;
-use instance_util::{classes, random_model, random_rows, tiny_map};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

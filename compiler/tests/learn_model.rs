@@ -1,7 +1,8 @@
 //! The model file: round trip, determinism, format check, error positions.
 
-mod learn_util;
+mod common;
 
+use common::learn::*;
 use graphspn_compiler::learn::model::MODEL_FORMAT;
 use graphspn_compiler::learn::{
     DenseParams, Model, ModelFileError, Progress, TrainingSettings, dense_structure,
@@ -10,7 +11,6 @@ use graphspn_compiler::learn::{
 use graphspn_compiler::map::ClassSet;
 use graphspn_compiler::spn::Node;
 use graphspn_compiler::template::Template;
-use learn_util::*;
 
 fn small_model() -> Model {
     let settings = TrainingSettings {

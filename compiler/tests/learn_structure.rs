@@ -1,16 +1,16 @@
 //! Dense structure generation: sizes with the authors' settings, validity
 //! (completeness, decomposability, normalisation), determinism, symmetry closure.
 
-mod learn_util;
+mod common;
 
 use std::collections::BTreeSet;
 
+use common::learn::*;
 use graphspn_compiler::learn::structure::num_weights;
 use graphspn_compiler::learn::{
     DenseParams, SplitChoice, dense_structure, edge_orbits, symmetric_dense_structure, uniform_spn,
 };
 use graphspn_compiler::spn::{Node, Spn};
-use learn_util::*;
 
 /// Scopes of all nodes; asserts completeness, decomposability, topological
 /// order and normalised non-negative weights.
@@ -94,7 +94,7 @@ fn distributions_are_normalised() {
     let p = DenseParams::default();
     for (n, c) in [(2usize, 10u16), (3, 6), (5, 3), (4, 3)] {
         let spn = dense_structure(n, u32::from(c), &p, 7).unwrap();
-        let z: f64 = all_assignments(n, c).iter().map(|x| value(&spn, x)).sum();
+        let z: f64 = all_labellings(n, c).iter().map(|x| value(&spn, x)).sum();
         assert!((z - 1.0).abs() < 1e-12, "n={n} c={c}: total mass {z}");
     }
     // Several decompositions, unbalanced subsets: still valid and normalised.
@@ -107,7 +107,7 @@ fn distributions_are_normalised() {
     };
     let spn = dense_structure(5, 3, &p2, 11).unwrap();
     check_valid(&spn);
-    let z: f64 = all_assignments(5, 3).iter().map(|x| value(&spn, x)).sum();
+    let z: f64 = all_labellings(5, 3).iter().map(|x| value(&spn, x)).sum();
     assert!((z - 1.0).abs() < 1e-12);
 }
 
@@ -156,7 +156,7 @@ fn symmetric_structure_is_closed_and_invariant() {
         let orbits = edge_orbits(&star, &star_group()).unwrap();
         assert!(!orbits.is_trivial());
         // Tied initial weights: value invariant under every automorphism.
-        for x in all_assignments(5, 3) {
+        for x in all_labellings(5, 3) {
             let v = value(&star, &x);
             for g in star_group() {
                 let y: Vec<u16> = g.iter().map(|&i| x[i]).collect();

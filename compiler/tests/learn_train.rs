@@ -1,8 +1,9 @@
 //! EM training: exact M-step on full tables, monotone objective, convergence to
 //! the sampling distribution, symmetry after augmentation / tying, pruning.
 
-mod learn_util;
+mod common;
 
+use common::learn::*;
 use graphspn_compiler::learn::structure::num_weights;
 use graphspn_compiler::learn::train::{dedupe, log_likelihood, prune};
 use graphspn_compiler::learn::{
@@ -11,7 +12,6 @@ use graphspn_compiler::learn::{
     symmetric_dense_structure, train, train_tied,
 };
 use graphspn_compiler::spn::Node;
-use learn_util::*;
 
 fn fixed(s: f64, epochs: usize, em: EmKind) -> TrainingSettings {
     TrainingSettings {
@@ -49,7 +49,7 @@ fn full_tables_learn_smoothed_frequencies() {
         for x in &samples {
             counts[index_of(x, 10)] += 1.0;
         }
-        let assignments = all_assignments(n, 10);
+        let assignments = all_labellings(n, 10);
         let q: Vec<f64> = assignments.iter().map(|x| value(&spn, x)).collect();
         for (i, x) in assignments.iter().enumerate() {
             let expect = (counts[i] + s) / (m as f64 + cells * s);
@@ -114,7 +114,7 @@ fn decaying_schedule_raises_likelihood_and_beats_independence() {
     assert_eq!(rep.smoothing_per_epoch[0], 30.0);
     assert_eq!(*rep.smoothing_per_epoch.last().unwrap(), 5.0);
     // The learned model is normalised and close to the truth.
-    let assignments = all_assignments(5, 4);
+    let assignments = all_labellings(5, 4);
     let q: Vec<f64> = assignments.iter().map(|x| value(&spn, x)).collect();
     let z: f64 = q.iter().sum();
     assert!((z - 1.0).abs() < 1e-12);
@@ -154,7 +154,7 @@ fn augmentation_makes_tables_exactly_symmetric() {
             Progress::Hidden,
         )
         .unwrap();
-        for x in all_assignments(n, 10) {
+        for x in all_labellings(n, 10) {
             for g in &group {
                 let y: Vec<u16> = g.iter().map(|&i| x[i]).collect();
                 assert_eq!(value(&spn, &x), value(&spn, &y), "{x:?} vs {y:?}");
@@ -166,7 +166,7 @@ fn augmentation_makes_tables_exactly_symmetric() {
 /// Largest |log p(x) − log p(g·x)| over all assignments and automorphisms.
 fn asymmetry(spn: &graphspn_compiler::spn::Spn, c: u16) -> f64 {
     let mut worst = 0.0f64;
-    for x in all_assignments(5, c) {
+    for x in all_labellings(5, c) {
         let v = value(spn, &x).ln();
         for g in star_group() {
             let y: Vec<u16> = g.iter().map(|&i| x[i]).collect();
@@ -290,7 +290,7 @@ fn pruning_keeps_a_valid_normalised_spn() {
     let removed = prune(&mut spn, 1e-3);
     assert!(removed > 0, "nothing pruned");
     assert!(num_weights(&spn) < before);
-    let z: f64 = all_assignments(5, 3).iter().map(|x| value(&spn, x)).sum();
+    let z: f64 = all_labellings(5, 3).iter().map(|x| value(&spn, x)).sum();
     assert!((z - 1.0).abs() < 1e-12, "mass {z}");
     for (i, n) in spn.nodes.iter().enumerate() {
         if let Node::Sum { children, .. } | Node::Product { children } = n {

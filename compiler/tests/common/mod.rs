@@ -1,7 +1,13 @@
-//! Helpers shared by the compiler crate's tests and benches (enumerations used by
-//! brute-force oracles). Test files include it with `mod common;`; the helper modules
-//! `learn_util` and the benches with `#[path]`.
+//! Helpers shared by the compiler crate's tests and benches: enumerations used by
+//! brute-force oracles (here), and per area [`codegen`] (fixtures and the brute-force
+//! oracle of the generated code), [`instance`] (small random models, maps, evidence)
+//! and [`learn`] (automorphism groups, a brute-force SPN evaluator, a synthetic
+//! sampler). Test files include it with `mod common;`, the benches with `#[path]`.
 #![allow(dead_code)]
+
+pub mod codegen;
+pub mod instance;
+pub mod learn;
 
 /// Every full assignment of variables with `classes[v]` classes each, the first
 /// variable slowest.

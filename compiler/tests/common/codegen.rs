@@ -1,5 +1,4 @@
 //! Shared fixtures and the brute-force oracle for the codegen tests.
-#![allow(dead_code)]
 
 use graphspn_compiler::decompose::{Component, Decomposition};
 use graphspn_compiler::learn::Model;

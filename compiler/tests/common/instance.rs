@@ -1,7 +1,6 @@
 //! Shared helpers for the instance tests: small random models (dense random
 //! structures or full tables with random weights), tiny maps, random evidence and a
 //! brute-force template SPN evaluator.
-#![allow(dead_code)]
 
 use graphspn_compiler::decompose::synthetic::random_connected_map;
 use graphspn_compiler::learn::model::MODEL_FORMAT;
@@ -46,7 +45,7 @@ pub fn full_table(n: usize, c: u32, rng: &mut ChaCha8Rng) -> Spn {
         }
     }
     let mut children = Vec::new();
-    for x in all_assignments(n, c as u16) {
+    for x in all_labellings(n, c as u16) {
         if n == 1 {
             children.push(x[0] as u32);
         } else {
@@ -111,8 +110,6 @@ pub fn random_rows(n: usize, c: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// The brute-force SPN evaluator and assignment enumerator shared with the learning tests.
-#[path = "../learn_util/mod.rs"]
-mod learn_util;
+// The brute-force SPN evaluator and assignment enumerator shared with the learning tests.
 #[allow(unused_imports)]
-pub use learn_util::{all_assignments, value};
+pub use super::learn::{all_labellings, value};

@@ -1,6 +1,5 @@
 //! Shared helpers for the learning tests: automorphism groups, a brute-force
 //! SPN evaluator (independent of the training passes) and a synthetic sampler.
-#![allow(dead_code)]
 
 use graphspn_compiler::map::ClassId;
 use graphspn_compiler::spn::{Node, Spn};
@@ -8,9 +7,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_chacha::rand_core::SeedableRng;
 
-#[path = "../common/mod.rs"]
-mod common;
-pub use common::permutations;
+pub use super::permutations;
 
 /// Automorphisms of Pair (P–A): identity and the swap.
 pub fn pair_group() -> Vec<Vec<usize>> {
@@ -52,21 +49,13 @@ pub fn value(spn: &Spn, x: &[ClassId]) -> f64 {
     v[spn.root as usize]
 }
 
-/// All assignments of `n` variables with `c` classes.
-pub fn all_assignments(n: usize, c: u16) -> Vec<Vec<ClassId>> {
-    let mut out = vec![vec![]];
-    for _ in 0..n {
-        let mut next = Vec::new();
-        for a in &out {
-            for k in 0..c {
-                let mut b = a.clone();
-                b.push(k);
-                next.push(b);
-            }
-        }
-        out = next;
-    }
-    out
+/// All assignments of `n` variables with `c` classes each, as class ids (the first
+/// variable slowest; [`super::all_assignments`] with equal class counts).
+pub fn all_labellings(n: usize, c: u16) -> Vec<Vec<ClassId>> {
+    super::all_assignments(&vec![u32::from(c); n])
+        .into_iter()
+        .map(|x| x.into_iter().map(|k| k as ClassId).collect())
+        .collect()
 }
 
 /// A structured random distribution over `n` variables with `c` classes: a
@@ -87,7 +76,7 @@ pub fn mixture_table(n: usize, c: u16, k: usize, seed: u64) -> Vec<f64> {
                 .collect()
         })
         .collect();
-    all_assignments(n, c)
+    all_labellings(n, c)
         .iter()
         .map(|x| {
             (0..k)
@@ -111,7 +100,7 @@ pub fn index_of(x: &[ClassId], c: u16) -> usize {
 /// `m` samples from a joint table (seeded).
 pub fn sample_table(table: &[f64], n: usize, c: u16, m: usize, seed: u64) -> Vec<Vec<ClassId>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let assignments = all_assignments(n, c);
+    let assignments = all_labellings(n, c);
     let mut cdf = Vec::with_capacity(table.len());
     let mut acc = 0.0;
     for p in table {
