@@ -7,14 +7,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use graphspn_compiler::experiments::evidence::NoiseLevel;
 use graphspn_compiler::experiments::report::write_outputs;
-use graphspn_compiler::experiments::reproduce::{ReproduceConfig, run};
-use graphspn_compiler::experiments::validate::ValidationGrid;
+use graphspn_compiler::experiments::reproduce::run;
 use graphspn_compiler::map::{TopoMap, cold, load_map_set, map_set_name};
 
 use super::common::require_data_dir;
 use super::output::{Outputs, write_folder};
+use super::reproduce::{ProtocolOptions, RunOptions};
 
 /// Arguments of `graphspn evaluate`.
 #[derive(Args)]
@@ -40,31 +39,13 @@ pub struct EvaluateArgs {
     /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Output folder (REPORT.md, results.json, *.svg); created if missing, must be
-    /// empty unless --force.
-    #[arg(long)]
-    out: PathBuf,
-    /// Write into a non-empty --out folder, replacing files of the same names.
-    #[arg(long)]
-    force: bool,
-    /// Master seed of every random step.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Noise levels, comma-separated (default: 1..6).
-    #[arg(long, value_delimiter = ',')]
-    levels: Option<Vec<u8>>,
-    /// Evidence rounds per map and level.
-    #[arg(long, default_value_t = 3)]
-    rounds: usize,
+    #[command(flatten)]
+    run: RunOptions,
+    #[command(flatten)]
+    protocol: ProtocolOptions,
     /// Test maps per building (default: all), chosen at random (seeded).
     #[arg(long)]
     max_maps: Option<usize>,
-    /// Skip the novelty-detection experiment.
-    #[arg(long)]
-    no_novelty: bool,
-    /// Tiny validation grid (smoke runs).
-    #[arg(long)]
-    tiny_grid: bool,
 }
 
 /// Loads the map sets of `paths` under their names; `flag` names them in errors.
@@ -87,7 +68,7 @@ fn load_sets(flag: &str, paths: &[PathBuf]) -> Result<Vec<(String, Vec<TopoMap>)
 /// Runs `graphspn evaluate`.
 pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
     // Every argument and the output folder are checked before any computation.
-    let mut outputs = Outputs::new(args.force);
+    let mut outputs = Outputs::new(args.run.force);
     for p in &args.maps {
         if !p.exists() {
             bail!("--maps {}: no such file or folder", p.display());
@@ -117,32 +98,14 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
             "--train: give at least two training buildings (the validation trains on one and validates on another), or none for the three COLD buildings"
         );
     }
-    outputs.folder("--out", &args.out)?;
-    let mut cfg = ReproduceConfig::full(args.seed);
-    if let Some(l) = &args.levels {
-        if l.is_empty() {
-            bail!("--levels: give at least one noise level");
-        }
-        cfg.levels = l
-            .iter()
-            .map(|&x| NoiseLevel::new(x).with_context(|| format!("--levels {x}")))
-            .collect::<Result<_, _>>()?;
-    }
-    if args.rounds == 0 {
-        bail!("--rounds 0: run at least one round");
-    }
-    cfg.rounds = args.rounds;
+    outputs.folder("--out", &args.run.out)?;
+    let mut cfg = args.run.config(false);
+    args.protocol.apply(&mut cfg)?;
     if let Some(m) = args.max_maps {
         if m == 0 {
             bail!("--max-maps 0: test at least one map per building");
         }
         cfg.maps_per_building = m;
-    }
-    if args.no_novelty {
-        cfg.novelty = false;
-    }
-    if args.tiny_grid {
-        cfg.grid = ValidationGrid::tiny();
     }
 
     let start = Instant::now();
@@ -189,13 +152,13 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
     cfg.train_buildings = Some(train.iter().map(|(n, _)| n.clone()).collect());
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
-    write_folder(&args.out, |dir| {
+    write_folder(&args.run.out, |dir| {
         Ok(write_outputs(&rep, &setups, &cfg, dir, "")?)
     })?;
     eprintln!(
         "evaluation done in {:.1} s; wrote {}",
         start.elapsed().as_secs_f64(),
-        args.out.join("REPORT.md").display()
+        args.run.out.join("REPORT.md").display()
     );
     Ok(())
 }

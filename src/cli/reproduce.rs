@@ -32,16 +32,10 @@ pub struct ReproduceArgs {
     /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Output folder (REPORT.md, results.json, *.svg); created if missing, must be
-    /// empty unless --force.
-    #[arg(long)]
-    out: PathBuf,
-    /// Write into a non-empty --out folder, replacing files of the same names.
-    #[arg(long)]
-    force: bool,
-    /// Master seed of every random step.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
+    #[command(flatten)]
+    run: RunOptions,
+    #[command(flatten)]
+    protocol: ProtocolOptions,
     /// Reduced run: Stockholm only, 2 maps, NL2 and NL5, 1 round.
     #[arg(long)]
     quick: bool,
@@ -63,25 +57,13 @@ pub struct ReproduceArgs {
     /// each remaining building is tested with a model trained on the other).
     #[arg(long)]
     exclude: Option<String>,
-    /// Noise levels to run, comma-separated (default: 1..6).
-    #[arg(long, value_delimiter = ',')]
-    levels: Option<Vec<u8>>,
     /// Test maps per building.
     #[arg(long)]
     maps: Option<usize>,
-    /// Evidence rounds per map and level.
-    #[arg(long)]
-    rounds: Option<usize>,
-    /// Skip the novelty-detection experiment.
-    #[arg(long)]
-    no_novelty: bool,
     /// Use the settings of a saved validation (`graphspn validate --out DIR` writes
     /// DIR/validation.json) instead of running the validation again.
     #[arg(long)]
     settings: Option<PathBuf>,
-    /// Tiny validation grid (smoke runs).
-    #[arg(long)]
-    tiny_grid: bool,
     /// Training settings as JSON merged over every validated GraphSPN variant's, e.g. '{"em":"soft"}'.
     #[arg(long)]
     training: Option<String>,
@@ -100,22 +82,84 @@ pub struct ValidateArgs {
     /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Output folder (VALIDATION.md, validation.json); created if missing, must be
-    /// empty unless --force.
-    #[arg(long)]
-    out: PathBuf,
-    /// Write into a non-empty --out folder, replacing files of the same names.
-    #[arg(long)]
-    force: bool,
-    /// Master seed.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
+    #[command(flatten)]
+    run: RunOptions,
     /// Test buildings to validate for, comma-separated (default: all three).
     #[arg(long, value_delimiter = ',')]
     buildings: Option<Vec<String>>,
-    /// Tiny grid (smoke runs).
+}
+
+/// Output, seed and grid options shared by `reproduce`, `validate` and `evaluate`.
+#[derive(Args)]
+pub struct RunOptions {
+    /// Output folder (reports, results and figures); created if missing, must be
+    /// empty unless --force.
     #[arg(long)]
-    tiny_grid: bool,
+    pub out: PathBuf,
+    /// Write into a non-empty --out folder, replacing files of the same names.
+    #[arg(long)]
+    pub force: bool,
+    /// Master seed of every random step.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Tiny validation grid (smoke runs).
+    #[arg(long)]
+    pub tiny_grid: bool,
+}
+
+impl RunOptions {
+    /// The protocol configuration to start from (`quick`: the reduced run) with the
+    /// seed and grid these options ask for.
+    pub fn config(&self, quick: bool) -> ReproduceConfig {
+        let mut cfg = if quick {
+            ReproduceConfig::quick(self.seed)
+        } else {
+            ReproduceConfig::full(self.seed)
+        };
+        if self.tiny_grid {
+            cfg.grid = ValidationGrid::tiny();
+        }
+        cfg
+    }
+}
+
+/// Test-protocol options shared by `reproduce` and `evaluate`.
+#[derive(Args)]
+pub struct ProtocolOptions {
+    /// Noise levels to run, comma-separated (default: 1..6).
+    #[arg(long, value_delimiter = ',')]
+    pub levels: Option<Vec<u8>>,
+    /// Evidence rounds per map and level (default 3; 1 with --quick).
+    #[arg(long)]
+    pub rounds: Option<usize>,
+    /// Skip the novelty-detection experiment.
+    #[arg(long)]
+    pub no_novelty: bool,
+}
+
+impl ProtocolOptions {
+    /// Checks the options and applies them to `cfg`.
+    pub fn apply(&self, cfg: &mut ReproduceConfig) -> Result<()> {
+        if let Some(l) = &self.levels {
+            if l.is_empty() {
+                bail!("--levels: give at least one noise level");
+            }
+            cfg.levels = l
+                .iter()
+                .map(|&x| NoiseLevel::new(x).with_context(|| format!("--levels {x}")))
+                .collect::<Result<_, _>>()?;
+        }
+        if let Some(r) = self.rounds {
+            if r == 0 {
+                bail!("--rounds 0: run at least one round");
+            }
+            cfg.rounds = r;
+        }
+        if self.no_novelty {
+            cfg.novelty = false;
+        }
+        Ok(())
+    }
 }
 
 /// Runs `graphspn validate`: the leave-one-training-building-out search of every
@@ -123,13 +167,10 @@ pub struct ValidateArgs {
 pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
     // Every argument and the output folder are checked before any computation.
     let data = require_data_dir(args.data)?;
-    let mut outputs = Outputs::new(args.force);
+    let mut outputs = Outputs::new(args.run.force);
     outputs.input("--data", &data);
-    outputs.folder("--out", &args.out)?;
-    let mut cfg = ReproduceConfig::full(args.seed);
-    if args.tiny_grid {
-        cfg.grid = ValidationGrid::tiny();
-    }
+    outputs.folder("--out", &args.run.out)?;
+    let cfg = args.run.config(false);
     let buildings = args.buildings.unwrap_or(cfg.test_buildings.clone());
     check_buildings("--buildings", &buildings)?;
     let start = Instant::now();
@@ -152,7 +193,7 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
         .collect();
     let json = serde_json::json!({ "settings": settings, "validation": vals });
     let md = validation_markdown(&vals, start.elapsed().as_secs_f64());
-    write_folder(&args.out, |dir| {
+    write_folder(&args.run.out, |dir| {
         std::fs::write(
             dir.join("validation.json"),
             serde_json::to_string_pretty(&json)?,
@@ -163,7 +204,7 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
     eprintln!(
         "validation done in {:.1} s; wrote {}",
         start.elapsed().as_secs_f64(),
-        args.out.join("VALIDATION.md").display()
+        args.run.out.join("VALIDATION.md").display()
     );
     Ok(())
 }
@@ -185,14 +226,10 @@ fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSetting
 pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     // Every argument and the output folder are checked before any computation.
     let data = require_data_dir(args.data)?;
-    let mut outputs = Outputs::new(args.force);
+    let mut outputs = Outputs::new(args.run.force);
     outputs.input("--data", &data);
-    outputs.folder("--out", &args.out)?;
-    let mut cfg = if args.quick {
-        ReproduceConfig::quick(args.seed)
-    } else {
-        ReproduceConfig::full(args.seed)
-    };
+    outputs.folder("--out", &args.run.out)?;
+    let mut cfg = args.run.config(args.quick);
     if args.paper_noise {
         cfg.wrong_draw = WrongClassDraw::AnyClass;
     }
@@ -223,32 +260,12 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
         }
         cfg.test_buildings = b;
     }
-    if let Some(l) = args.levels {
-        if l.is_empty() {
-            bail!("--levels: give at least one noise level");
-        }
-        cfg.levels = l
-            .into_iter()
-            .map(|x| NoiseLevel::new(x).with_context(|| format!("--levels {x}")))
-            .collect::<Result<_, _>>()?;
-    }
+    args.protocol.apply(&mut cfg)?;
     if let Some(m) = args.maps {
         if m == 0 {
             bail!("--maps 0: test at least one map per building");
         }
         cfg.maps_per_building = m;
-    }
-    if let Some(r) = args.rounds {
-        if r == 0 {
-            bail!("--rounds 0: run at least one round");
-        }
-        cfg.rounds = r;
-    }
-    if args.no_novelty {
-        cfg.novelty = false;
-    }
-    if args.tiny_grid {
-        cfg.grid = ValidationGrid::tiny();
     }
     if let Some(p) = &args.settings {
         cfg.settings = Some(read_settings(p)?);
@@ -279,14 +296,14 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
     let check =
-        super::generated_check::section(args.seed, if args.quick { 1 } else { cfg.rounds })?;
-    write_folder(&args.out, |dir| {
+        super::generated_check::section(args.run.seed, if args.quick { 1 } else { cfg.rounds })?;
+    write_folder(&args.run.out, |dir| {
         Ok(write_outputs(&rep, &setups, &cfg, dir, &check)?)
     })?;
     eprintln!(
         "reproduction done in {:.1} s; wrote {}",
         start.elapsed().as_secs_f64(),
-        args.out.join("REPORT.md").display()
+        args.run.out.join("REPORT.md").display()
     );
     Ok(())
 }

@@ -754,29 +754,21 @@ pub fn validate_for(
         .ok_or_else(|| ReproduceError::Config("GraphSPN validation grid is empty".into()))?;
     candidates.extend(g_scored.into_iter().map(|(_, c)| c));
     seconds.push(("GraphSPN".to_string(), clock.elapsed().as_secs_f64()));
-
-    let clock = std::time::Instant::now();
-    let mrf2 = search_mrf(
-        "MRF-2",
-        Mrf2::train,
-        grid,
-        &cfg.cooccurrence,
-        &folds,
-        &graphs,
-        &mut candidates,
-    )?;
-    seconds.push(("MRF-2".to_string(), clock.elapsed().as_secs_f64()));
-    let clock = std::time::Instant::now();
-    let mrf3 = search_mrf(
-        "MRF-3",
-        Mrf3::train,
-        grid,
-        &cfg.cooccurrence,
-        &folds,
-        &graphs,
-        &mut candidates,
-    )?;
-    seconds.push(("MRF-3".to_string(), clock.elapsed().as_secs_f64()));
+    let mut timed =
+        |name: &str,
+         search: &dyn Fn(&mut Vec<CandidateScore>) -> Result<MrfSetting, ReproduceError>| {
+            let clock = std::time::Instant::now();
+            let chosen = search(&mut candidates);
+            seconds.push((name.to_string(), clock.elapsed().as_secs_f64()));
+            chosen
+        };
+    let base = &cfg.cooccurrence;
+    let mrf2 = timed("MRF-2", &|c| {
+        search_mrf("MRF-2", Mrf2::train, grid, base, &folds, &graphs, c)
+    })?;
+    let mrf3 = timed("MRF-3", &|c| {
+        search_mrf("MRF-3", Mrf3::train, grid, base, &folds, &graphs, c)
+    })?;
     Ok(Validation {
         seconds,
         test_building: test_building.into(),
