@@ -9,8 +9,8 @@
 
 use std::str::FromStr;
 
-use proc_macro2::{Ident, Literal, Span, TokenStream};
-use quote::{ToTokens, TokenStreamExt, format_ident, quote};
+use proc_macro2::{Delimiter, Group, Ident, Literal, Span, TokenStream, TokenTree};
+use quote::{ToTokens, format_ident, quote};
 
 use super::Precision;
 
@@ -120,18 +120,52 @@ impl Lit {
     }
 }
 
+/// A token fragment that can be moved into a stream. Owned streams are moved tree by
+/// tree (going through `ToTokens` would clone them, and extending with a shared
+/// stream copies it: the tables of a 10,000-place map are hundreds of thousands of
+/// such fragments).
+pub trait Fragment {
+    /// Appends the fragment's tokens to `out`.
+    fn push_to(self, out: &mut TokenStream);
+}
+
+impl Fragment for TokenStream {
+    fn push_to(self, out: &mut TokenStream) {
+        out.extend(self);
+    }
+}
+
+impl Fragment for Literal {
+    fn push_to(self, out: &mut TokenStream) {
+        out.extend(std::iter::once(TokenTree::Literal(self)));
+    }
+}
+
+impl Fragment for Ident {
+    fn push_to(self, out: &mut TokenStream) {
+        out.extend(std::iter::once(TokenTree::Ident(self)));
+    }
+}
+
+impl<T: ToTokens + ?Sized> Fragment for &T {
+    fn push_to(self, out: &mut TokenStream) {
+        self.to_tokens(out);
+    }
+}
+
 /// `items` separated by `sep` (e.g. `a * b * c` with `quote!(*)`).
 pub fn join<I>(items: I, sep: &TokenStream) -> TokenStream
 where
     I: IntoIterator,
-    I::Item: ToTokens,
+    I::Item: Fragment,
 {
+    let sep: Vec<TokenTree> = sep.clone().into_iter().collect();
     let mut out = TokenStream::new();
     for (i, item) in items.into_iter().enumerate() {
         if i > 0 {
-            out.extend(sep.clone());
+            out.extend(sep.iter().cloned());
         }
-        item.to_tokens(&mut out);
+        item.push_to(&mut out);
     }
     out
 }
@@ -140,15 +174,13 @@ where
 pub fn array<I>(items: I) -> TokenStream
 where
     I: IntoIterator,
-    I::Item: ToTokens,
+    I::Item: Fragment,
 {
     let inner = join(items, &quote!(,));
-    quote!([#inner])
+    TokenTree::Group(Group::new(Delimiter::Bracket, inner)).into()
 }
 
 /// Integer literals `items` as an array expression `[1, 2, 3]`.
 pub fn int_array<I: IntoIterator<Item = usize>>(items: I) -> TokenStream {
-    let mut inner = TokenStream::new();
-    inner.append_separated(items.into_iter().map(int), quote!(,));
-    quote!([#inner])
+    array(items.into_iter().map(int))
 }
