@@ -574,6 +574,7 @@ fn report_markdown(
                 .filter(|n| n.set == set && n.novel == novel)
                 .count()
         };
+        let originals = rep.novelty.iter().filter(|n| n.is_original()).count();
         let _ = writeln!(
             s,
             "\n## Novelty detection (paper Fig. 7)\n\n\
@@ -586,17 +587,9 @@ fn report_markdown(
              the places, {} regions per swap and map: {} novel and {} not, plus the originals.\n\n\
              The paper reports ROC curves only (all three models good, MRFs slightly better \
              than GraphSPN).\n",
-            rep.novelty
-                .iter()
-                .filter(|n| n.variant == "original")
-                .count(),
+            originals,
             count(NoveltySet::Paper, true),
-            count(NoveltySet::Paper, false)
-                - rep
-                    .novelty
-                    .iter()
-                    .filter(|n| n.variant == "original")
-                    .count(),
+            count(NoveltySet::Paper, false) - originals,
             super::reproduce::LOCAL_REGIONS,
             count(NoveltySet::Local, true),
             count(NoveltySet::Local, false),

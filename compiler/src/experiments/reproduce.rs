@@ -35,7 +35,7 @@ use crate::instance::{ComponentInstance, InstanceQueryError};
 use crate::learn::{Model, Progress, TrainModelError, TrainingSettings, train_model};
 use crate::map::{ClassId, MapError, TopoMap, cold};
 use crate::mrf::{BpOptions, BpResult, CooccurrenceParams, Mrf2, Mrf3, MrfError, MrfModel};
-use crate::template::Template;
+use crate::template::{Adjacency, Template};
 
 /// Why a reproduction run failed.
 #[derive(Debug, Error)]
@@ -256,6 +256,19 @@ pub struct NoveltyResult {
     pub variables: usize,
     /// Log-likelihood per variable (natural log), in [`MODELS`] order.
     pub score: [f64; NUM_MODELS],
+}
+
+impl NoveltyResult {
+    /// Whether this labelling is the map's original one.
+    pub fn is_original(&self) -> bool {
+        self.variant == ORIGINAL
+    }
+
+    /// Whether the labelling is scored in `set` (its own set; the original
+    /// labelling in both).
+    pub fn in_set(&self, set: NoveltySet) -> bool {
+        self.set == set || self.is_original()
+    }
 }
 
 /// Per-building facts.
@@ -748,6 +761,9 @@ pub enum NoveltySet {
     Local,
 }
 
+/// Name of the unswapped labelling, which belongs to both novelty sets.
+pub const ORIGINAL: &str = "original";
+
 /// Share of a map's places a local swap region covers.
 pub const LOCAL_REGION_SHARE: f64 = 0.25;
 
@@ -793,11 +809,10 @@ fn swap_where(
         .collect()
 }
 
-/// A connected region of `map` grown breadth-first from `start` until it holds
+/// A connected region grown breadth-first from `start` over `adj` until it holds
 /// `size` places (or its whole component).
-fn region_from(map: &TopoMap, start: usize, size: usize) -> Vec<bool> {
-    let adj = crate::template::Adjacency::new(map);
-    let mut inside = vec![false; map.num_places()];
+fn region_from(adj: &Adjacency, start: usize, size: usize) -> Vec<bool> {
+    let mut inside = vec![false; adj.num_places()];
     let mut queue = std::collections::VecDeque::from([start]);
     inside[start] = true;
     let mut count = 1;
@@ -820,8 +835,9 @@ fn region_from(map: &TopoMap, start: usize, size: usize) -> Vec<bool> {
 /// the paper's set, then the local set (regions seeded by `seed`). A swap whose
 /// classes the map's class set lacks, or that changes no place, is left out.
 pub fn novelty_labellings(map: &TopoMap, truth: &[ClassId], seed: u64) -> Vec<NoveltyLabelling> {
+    let adj = Adjacency::new(map);
     let mut out = vec![NoveltyLabelling {
-        name: "original".into(),
+        name: ORIGINAL.into(),
         set: NoveltySet::Paper,
         novel: false,
         labels: truth.to_vec(),
@@ -847,7 +863,7 @@ pub fn novelty_labellings(map: &TopoMap, truth: &[ClassId], seed: u64) -> Vec<No
         for r in 0..LOCAL_REGIONS {
             // The region starts at a place the swap changes.
             let start = swapped[rand::Rng::random_range(&mut rng, 0..swapped.len())];
-            let inside = region_from(map, start, size);
+            let inside = region_from(&adj, start, size);
             out.push(NoveltyLabelling {
                 name: format!("{name} local {}", r + 1),
                 set: NoveltySet::Local,
@@ -942,7 +958,7 @@ pub fn run_novelty(
 pub fn novelty_points(novelty: &[NoveltyResult], set: NoveltySet, k: usize) -> Vec<(f64, bool)> {
     novelty
         .iter()
-        .filter(|n| n.set == set || n.variant == "original")
+        .filter(|n| n.in_set(set))
         .map(|n| (n.score[k], n.novel))
         .collect()
 }
@@ -989,10 +1005,7 @@ pub fn auc(points: &[(f64, bool)]) -> f64 {
 /// averaged over the maps that have both kinds.
 pub fn within_map_auc(novelty: &[NoveltyResult], set: NoveltySet, k: usize) -> f64 {
     let mut maps: BTreeMap<(&str, &str), Vec<(f64, bool)>> = BTreeMap::new();
-    for n in novelty
-        .iter()
-        .filter(|n| n.set == set || n.variant == "original")
-    {
+    for n in novelty.iter().filter(|n| n.in_set(set)) {
         maps.entry((n.building.as_str(), n.map.as_str()))
             .or_default()
             .push((n.score[k], n.novel));

@@ -54,10 +54,21 @@ impl MrfSetting {
         }
     }
 
+    /// The BP schedule, e.g. `sequential` or `flooding d=0.5`.
+    fn bp_label(&self) -> String {
+        let schedule = match self.bp.schedule {
+            Schedule::Sequential => "sequential",
+            Schedule::Parallel => "flooding",
+        };
+        if self.bp.damping > 0.0 {
+            format!("{schedule} d={}", self.bp.damping)
+        } else {
+            schedule.to_string()
+        }
+    }
+
     /// The setting as `(option, value)` pairs: potentials, coupling, evidence, BP.
     pub fn options(&self) -> Vec<(String, String)> {
-        let l = self.label();
-        let bp = l.rsplit(", ").next().unwrap_or("").to_string();
         vec![
             (
                 "potentials".into(),
@@ -68,26 +79,18 @@ impl MrfSetting {
                 "evidence exponent".into(),
                 self.evidence_exponent.to_string(),
             ),
-            ("BP".into(), bp),
+            ("BP".into(), self.bp_label()),
         ]
     }
 
     /// Short description, e.g. `normalised^0.3, ev^1, sequential`.
     pub fn label(&self) -> String {
         format!(
-            "{}^{}, ev^{}, {}{}",
+            "{}^{}, ev^{}, {}",
             self.potentials.normalisation.name(),
             self.potentials.coupling,
             self.evidence_exponent,
-            match self.bp.schedule {
-                Schedule::Sequential => "sequential",
-                Schedule::Parallel => "flooding",
-            },
-            if self.bp.damping > 0.0 {
-                format!(" d={}", self.bp.damping)
-            } else {
-                String::new()
-            }
+            self.bp_label()
         )
     }
 }

@@ -175,7 +175,7 @@ pub fn train_model(
             return Err(TrainModelError::NoSamples(template.name.clone()));
         }
         let seed = derive_seed(settings.seed, t as u64, u64::MAX, 0);
-        let (spn, report) = learn_template_spn(
+        let (mut spn, report) = learn_template_spn(
             template.num_nodes,
             num_classes,
             &template.automorphisms(),
@@ -188,7 +188,6 @@ pub fn train_model(
             template: template.name.clone(),
             source,
         })?;
-        let mut spn = spn;
         super::temper_spn(&mut spn, settings.temperature)?;
         spns.push(spn);
         trainings.push(TemplateTraining {

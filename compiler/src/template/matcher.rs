@@ -197,40 +197,8 @@ impl Matcher {
         rng: &mut R,
         out: &mut Vec<usize>,
     ) -> bool {
-        let Kind::Star { leaves } = self.kind else {
-            return self.find_at(adj, root, used, rng, out);
-        };
-        out.clear();
-        if used[root] {
-            return false;
-        }
-        let mut free: Vec<(usize, usize)> = adj
-            .neighbors(root)
-            .iter()
-            .copied()
-            .filter(|&v| !used[v])
-            .map(|v| {
-                let others = adj
-                    .neighbors(v)
-                    .iter()
-                    .filter(|&&w| w != root && !used[w])
-                    .count();
-                (others, v)
-            })
-            .collect();
-        if free.len() < leaves {
-            return false;
-        }
-        // A uniformly random order, then a stable sort by free degree: ties stay random.
-        let len = free.len();
-        for i in 0..len.saturating_sub(1) {
-            let j = rng.random_range(i..len);
-            free.swap(i, j);
-        }
-        free.sort_by_key(|&(others, _)| others);
-        out.push(root);
-        out.extend(free[..leaves].iter().map(|&(_, v)| v));
-        true
+        let mut dyn_rng = RngAdapter(rng);
+        self.search_with(adj, root, used, Some(&mut dyn_rng), true, out)
     }
 
     /// Whether any match with template node 0 at `root` exists among places
@@ -245,7 +213,21 @@ impl Matcher {
         adj: &Adjacency,
         root: usize,
         used: &[bool],
+        rng: Option<&mut dyn RngCore>,
+        out: &mut Vec<usize>,
+    ) -> bool {
+        self.search_with(adj, root, used, rng, false, out)
+    }
+
+    /// [`Matcher::search`]; with `cover`, a star's leaves are the free neighbours
+    /// with the fewest other free neighbours (ties in random order).
+    fn search_with(
+        &self,
+        adj: &Adjacency,
+        root: usize,
+        used: &[bool],
         mut rng: Option<&mut dyn RngCore>,
+        cover: bool,
         out: &mut Vec<usize>,
     ) -> bool {
         out.clear();
@@ -260,14 +242,25 @@ impl Matcher {
                 if out.len() < leaves + 1 {
                     return false;
                 }
+                let len = out.len();
                 if let Some(rng) = rng.as_deref_mut() {
                     // Partial Fisher–Yates on out[1..]: a uniformly random
-                    // ordered choice of `leaves` distinct neighbours.
-                    let len = out.len();
-                    for i in 1..=leaves {
+                    // ordered choice of `leaves` distinct neighbours (all of them
+                    // shuffled when covering, so the sort below keeps ties random).
+                    let end = if cover { len - 1 } else { leaves + 1 };
+                    for i in 1..end {
                         let j = rng.random_range(i..len);
                         out.swap(i, j);
                     }
+                }
+                if cover {
+                    // Stable: equal free degrees keep their random order.
+                    out[1..].sort_by_cached_key(|&v| {
+                        adj.neighbors(v)
+                            .iter()
+                            .filter(|&&w| w != root && !used[w])
+                            .count()
+                    });
                 }
                 out.truncate(leaves + 1);
                 true
