@@ -183,3 +183,107 @@ fn no_unused_dependency() {
     }
     assert!(checked >= 20, "only {checked} dependencies checked");
 }
+
+/// `learn/`'s modules import each other without a circle (settings and shared types
+/// at the bottom, algorithms above): the graph of `super::<module>` references in
+/// code (comments aside; names re-exported by `learn/mod.rs` resolved to their
+/// module) has no cycle.
+#[test]
+fn learn_modules_import_without_a_circle() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/learn");
+    let files = sources(&dir);
+    let module = |p: &Path| p.file_stem().unwrap().to_string_lossy().into_owned();
+    let modules: Vec<String> = files
+        .iter()
+        .map(|(p, _)| module(p))
+        .filter(|m| m != "mod")
+        .collect();
+    // Names `learn/mod.rs` re-exports: `pub use <module>::{a, b}` / `pub use <module>::a`.
+    let mod_rs = &files
+        .iter()
+        .find(|(p, _)| module(p) == "mod")
+        .expect("mod.rs")
+        .1;
+    let mut owner: std::collections::BTreeMap<String, String> = Default::default();
+    for stmt in mod_rs.split(';') {
+        let stmt = stmt.trim();
+        let Some(rest) = stmt.strip_prefix("pub use ") else {
+            continue;
+        };
+        let Some((m, names)) = rest.split_once("::") else {
+            continue;
+        };
+        for n in names.trim_matches(['{', '}']).split(',') {
+            let n = n.trim();
+            if !n.is_empty() {
+                owner.insert(n.to_string(), m.trim().to_string());
+            }
+        }
+    }
+    for (name, m) in [("Model", "model"), ("LearnError", "mod")] {
+        owner.entry(name.to_string()).or_insert(m.to_string());
+    }
+    let mut edges: Vec<(String, String)> = Vec::new();
+    for (p, text) in &files {
+        let from = module(p);
+        if from == "mod" {
+            continue;
+        }
+        for line in text.lines() {
+            let code = line.split("//").next().unwrap_or("");
+            for (i, _) in code.match_indices("super::") {
+                let rest = &code[i + "super::".len()..];
+                let names: Vec<&str> = if let Some(group) = rest.strip_prefix('{') {
+                    group.split('}').next().unwrap_or("").split(',').collect()
+                } else {
+                    vec![rest]
+                };
+                for n in names {
+                    let ident: String = n
+                        .trim()
+                        .chars()
+                        .take_while(|c| c.is_alphanumeric() || *c == '_')
+                        .collect();
+                    let target = if modules.contains(&ident) {
+                        ident
+                    } else if let Some(m) = owner.get(&ident) {
+                        m.clone()
+                    } else {
+                        continue;
+                    };
+                    if target != from && target != "mod" {
+                        edges.push((from.clone(), target));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        edges.iter().any(|(a, b)| a == "train" && b == "settings"),
+        "the scan should see train -> settings: {edges:?}"
+    );
+    // Depth-first search for a cycle.
+    fn visit(
+        m: &str,
+        edges: &[(String, String)],
+        state: &mut std::collections::BTreeMap<String, u8>,
+        path: &mut Vec<String>,
+    ) {
+        match state.get(m) {
+            Some(2) => return,
+            Some(1) => panic!("import circle in learn/: {} -> {m}", path.join(" -> ")),
+            _ => {}
+        }
+        state.insert(m.to_string(), 1);
+        path.push(m.to_string());
+        for (_, b) in edges.iter().filter(|(a, _)| a == m) {
+            visit(b, edges, state, path);
+        }
+        path.pop();
+        state.insert(m.to_string(), 2);
+    }
+    let mut state = Default::default();
+    for m in &modules {
+        visit(m, &edges, &mut state, &mut Vec::new());
+    }
+}
