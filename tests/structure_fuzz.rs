@@ -100,6 +100,7 @@ fn random_case(seed: u64, vectors: usize) -> Case {
     let classes = ClassSet::new((0..c).map(|k| format!("C{k}")).collect()).unwrap();
     let model = Model {
         format: 1,
+        family: Default::default(),
         classes: classes.clone(),
         templates,
         spns,

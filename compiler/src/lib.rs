@@ -11,6 +11,8 @@
 //! | [`decompose`] | decompositions of a map into template-shaped components (the paper's Alg. 2) |
 //! | [`render`] | SVG drawings of maps, marginals and decompositions |
 //! | [`learn`] | template SPN structure generation and EM training; the model file |
+//! | [`treemix`] | tree mixtures: an exact mixture of edge-covering spanning trees (the second model family) |
+//! | [`family`] | the model families and the loader that reads a model file of either |
 //! | [`instance`] | the instance GraphSPN of a map (the paper's Alg. 1) |
 //! | [`codegen`] | straight-line `no_std` Rust for a known map, and the `build.rs` builder |
 //! | [`mrf`] | Markov random field baselines with loopy belief propagation |
@@ -30,6 +32,7 @@ pub mod decompose;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod experiments;
+pub mod family;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod instance;
@@ -47,5 +50,6 @@ mod par;
 pub mod render;
 pub mod spn;
 pub mod template;
+pub mod treemix;
 
 pub use graphspn_runtime as runtime;

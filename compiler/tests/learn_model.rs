@@ -32,6 +32,7 @@ fn small_model() -> Model {
     .unwrap();
     Model {
         format: MODEL_FORMAT,
+        family: Default::default(),
         classes: ClassSet::paper(),
         templates: vec![Template::three(), Template::pair(), Template::singleton()],
         spns: vec![

@@ -33,6 +33,7 @@ use super::validate::{
 use crate::decompose::{DecomposeError, decompose_best};
 use crate::instance::{ComponentInstance, InstanceQueryError};
 use crate::learn::{Model, Progress, TrainModelError, TrainingSettings, train_model};
+pub use crate::map::stats::class_prior;
 use crate::map::{ClassId, MapError, TopoMap, cold};
 use crate::mrf::{BpOptions, BpResult, CooccurrenceParams, Mrf2, Mrf3, MrfError, MrfModel};
 use crate::template::{Adjacency, Template};
@@ -658,29 +659,6 @@ pub fn temper_rows(rows: &[Vec<f64>], exponent: f64) -> Vec<Vec<f64>> {
             p.into_iter().map(|x| x / s).collect()
         })
         .collect()
-}
-
-/// Share of each class among the places of `maps` (`classes` classes), smoothed
-/// towards uniform: `(n_c + α·N/C) / (N·(1 + α))` with `α = 0.1`, so a class never
-/// seen in training gets 1% of the mass (with 10 classes) rather than 0.
-pub fn class_prior(maps: &[TopoMap], classes: usize) -> Vec<f64> {
-    const ALPHA: f64 = 0.1;
-    let mut counts = vec![0.0; classes];
-    for m in maps {
-        for p in m.places() {
-            if let Some(c) = p.class.filter(|&c| (c as usize) < classes) {
-                counts[c as usize] += 1.0;
-            }
-        }
-    }
-    let n: f64 = counts.iter().sum();
-    let add = if n > 0.0 {
-        ALPHA * n / classes as f64
-    } else {
-        1.0
-    };
-    let total: f64 = counts.iter().map(|c| c + add).sum();
-    counts.iter().map(|c| (c + add) / total).collect()
 }
 
 /// The evidence rows GraphSPN is given: each row raised to `exponent`, multiplied

@@ -51,48 +51,12 @@ use crate::decompose::{Component, Decomposition, DecompositionParams, decompose_
 use crate::interpreter::{Marginals, Mpe};
 use crate::learn::Model;
 use crate::map::{ClassId, TopoMap};
-use crate::spn::{Node, Spn};
+use crate::spn::{Mixing, Node, Spn};
 
 const NEG_INF: f64 = f64::NEG_INFINITY;
 const LEAF: u8 = 0;
 const SUM: u8 = 1;
 const PRODUCT: u8 = 2;
-
-/// How [`ComponentInstance::marginals_mixed`] combines the decompositions' marginals.
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "snake_case")]
-pub enum Mixing {
-    /// Weight `P(d | evidence)`: the exact marginals of the instance GraphSPN (the
-    /// mixture of the D decompositions).
-    #[default]
-    Posterior,
-    /// Weight `1/D`: the mean of the D decompositions' exact marginals. With a
-    /// posterior weight the best-fitting decomposition usually dominates (one
-    /// decomposition carries most of the weight on COLD maps), so each place sees
-    /// only its component in that decomposition; the average lets every place
-    /// see all D of its neighbourhoods. Not the posterior of one model.
-    Average,
-}
-
-impl Mixing {
-    /// Both, in a fixed order.
-    pub const ALL: [Mixing; 2] = [Mixing::Posterior, Mixing::Average];
-
-    /// Short name (`posterior`, `average`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Mixing::Posterior => "posterior",
-            Mixing::Average => "average",
-        }
-    }
-
-    /// The mixing called `name` (see [`Mixing::name`]).
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|m| m.name() == name)
-    }
-}
 
 /// One template SPN flattened for evaluation on any component (CSR arrays, logs of
 /// the weights); leaves index `var × classes + class` of a component's slot row.
@@ -745,37 +709,11 @@ impl ComponentInstance {
         Ok(())
     }
 
-    /// Checks one evidence row of place index `place` (the interpreter's rules).
+    /// Checks one evidence row of place index `place` (the interpreter's rules,
+    /// [`crate::interpreter::check_row`]).
     fn check_row(&self, place: usize, row: &[f64]) -> Result<(), InstanceQueryError> {
-        let place_id = self.place_ids[place];
-        let err = |e: EvidenceError| Err(InstanceQueryError::Inference(e.into()));
-        if row.len() != self.num_classes {
-            return err(EvidenceError::WrongShape {
-                place,
-                expected: self.num_classes,
-                found: row.len(),
-            });
-        }
-        for (class, &a) in row.iter().enumerate() {
-            if !a.is_finite() {
-                return err(EvidenceError::NotFinite {
-                    place,
-                    place_id,
-                    class,
-                });
-            }
-            if a < 0.0 {
-                return err(EvidenceError::Negative {
-                    place,
-                    place_id,
-                    class,
-                });
-            }
-        }
-        if row.iter().all(|&a| a == 0.0) {
-            return err(EvidenceError::NoMass { place, place_id });
-        }
-        Ok(())
+        crate::interpreter::check_row(place, self.place_ids[place], row, self.num_classes)
+            .map_err(|e| InstanceQueryError::Inference(e.into()))
     }
 
     /// Sets the evidence of every place (one row per place, place order) and

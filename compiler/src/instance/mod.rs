@@ -30,9 +30,8 @@ mod export;
 mod grow;
 mod query;
 
+pub use crate::spn::Mixing;
 pub use build::{CopyStats, Instance, InstanceError, InstanceParams};
-pub use components::{
-    ComponentInstance, Mixing, estimated_component_bytes, estimated_explicit_bytes,
-};
+pub use components::{ComponentInstance, estimated_component_bytes, estimated_explicit_bytes};
 pub use grow::grow_decompositions;
 pub use query::{InstanceModel, InstanceQueryError};

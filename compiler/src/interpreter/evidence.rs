@@ -49,27 +49,47 @@ impl Evidence {
                     found: row.len(),
                 });
             }
-            let place_id = place as u64;
-            for (class, &a) in row.iter().enumerate() {
-                if !a.is_finite() {
-                    return Err(EvidenceError::NotFinite {
-                        place,
-                        place_id,
-                        class,
-                    });
-                }
-                if a < 0.0 {
-                    return Err(EvidenceError::Negative {
-                        place,
-                        place_id,
-                        class,
-                    });
-                }
-            }
-            if row.iter().all(|&a| a == 0.0) {
-                return Err(EvidenceError::NoMass { place, place_id });
-            }
+            check_row(place, place as u64, row, k as usize)?;
         }
         Ok(())
     }
+}
+
+/// The one check of a row of local evidence, shared by every evaluator (the
+/// interpreter, `instance::ComponentInstance`, `treemix::TreeInstance`): `classes`
+/// values, each finite and ≥ 0, not all zero. `place` is the place's index, `place_id`
+/// its user-facing id (both reported in the error).
+pub fn check_row(
+    place: usize,
+    place_id: u64,
+    row: &[f64],
+    classes: usize,
+) -> Result<(), EvidenceError> {
+    if row.len() != classes {
+        return Err(EvidenceError::WrongShape {
+            place,
+            expected: classes,
+            found: row.len(),
+        });
+    }
+    for (class, &a) in row.iter().enumerate() {
+        if !a.is_finite() {
+            return Err(EvidenceError::NotFinite {
+                place,
+                place_id,
+                class,
+            });
+        }
+        if a < 0.0 {
+            return Err(EvidenceError::Negative {
+                place,
+                place_id,
+                class,
+            });
+        }
+    }
+    if row.iter().all(|&a| a == 0.0) {
+        return Err(EvidenceError::NoMass { place, place_id });
+    }
+    Ok(())
 }

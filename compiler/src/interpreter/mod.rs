@@ -11,4 +11,4 @@ mod eval;
 mod evidence;
 
 pub use eval::{BATCH, Evaluator, InferenceError, Marginals, Mpe, log_likelihood, marginals, mpe};
-pub use evidence::Evidence;
+pub use evidence::{Evidence, check_row};

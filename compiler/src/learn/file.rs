@@ -11,6 +11,7 @@ use serde::Deserialize;
 
 use super::model::{MODEL_FORMAT, Model};
 use super::settings::TrainingSettings;
+use crate::family::{ModelFamily, family_of};
 use crate::spn::validate::WEIGHT_SUM_TOLERANCE;
 use crate::spn::{Node, NodeId, Spn, SpnError};
 use crate::template::Template;
@@ -184,6 +185,12 @@ impl Model {
             source_name: source_name.to_string(),
             message,
         };
+        if self.family != ModelFamily::Graphspn {
+            return Err(invalid(format!(
+                "a GraphSPN model must say \"family\": \"graphspn\", this one says {:?}",
+                self.family.name()
+            )));
+        }
         if self.classes.is_empty() {
             return Err(invalid("the model has no classes".into()));
         }
@@ -250,6 +257,16 @@ impl Model {
                     .format
                     .map_or_else(|| "missing".to_string(), |v| v.to_string()),
                 expected: MODEL_FORMAT,
+            });
+        }
+        let family = family_of(text, source_name)?;
+        if family != ModelFamily::Graphspn {
+            return Err(ModelFileError::Invalid {
+                source_name: source_name.to_string(),
+                message: format!(
+                    "this is a {} model, not a GraphSPN; this command reads GraphSPN models only",
+                    family.name()
+                ),
             });
         }
         let mut model: Model =

@@ -198,6 +198,7 @@ pub fn train_model(
     }
     let model = Model {
         format: MODEL_FORMAT,
+        family: Default::default(),
         classes: first.classes.clone(),
         templates: templates.to_vec(),
         spns,

@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::family::ModelFamily;
 use crate::map::ClassSet;
 use crate::spn::Spn;
 use crate::template::Template;
@@ -19,6 +20,10 @@ pub const MODEL_FORMAT: u32 = 1;
 pub struct Model {
     /// Format version, [`MODEL_FORMAT`].
     pub format: u32,
+    /// Always [`ModelFamily::Graphspn`] (absent in files written before other
+    /// families existed).
+    #[serde(default)]
+    pub family: ModelFamily,
     /// The class names.
     pub classes: ClassSet,
     /// The sub-graph templates, largest first.

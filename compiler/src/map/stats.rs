@@ -230,3 +230,26 @@ impl MapStats {
         }
     }
 }
+
+/// Share of each class among the places of `maps` (`classes` classes), smoothed
+/// towards uniform: `(n_c + α·N/C) / (N·(1 + α))` with `α = 0.1`, so a class never
+/// seen in training gets 1% of the mass (with 10 classes) rather than 0.
+pub fn class_prior(maps: &[TopoMap], classes: usize) -> Vec<f64> {
+    const ALPHA: f64 = 0.1;
+    let mut counts = vec![0.0; classes];
+    for m in maps {
+        for p in m.places() {
+            if let Some(c) = p.class.filter(|&c| (c as usize) < classes) {
+                counts[c as usize] += 1.0;
+            }
+        }
+    }
+    let n: f64 = counts.iter().sum();
+    let add = if n > 0.0 {
+        ALPHA * n / classes as f64
+    } else {
+        1.0
+    };
+    let total: f64 = counts.iter().map(|c| c + add).sum();
+    counts.iter().map(|c| (c + add) / total).collect()
+}

@@ -67,10 +67,12 @@ impl Spn {
 
 pub mod builder;
 pub mod format;
+pub mod mixing;
 pub mod random;
 pub mod validate;
 
 pub use builder::SpnBuilder;
 pub use format::{SPN_FORMAT_VERSION, SpnFormatError};
+pub use mixing::Mixing;
 pub use random::{RandomSpnParams, random_spn};
 pub use validate::SpnError;

@@ -172,6 +172,7 @@ fn build(
 pub fn model(classes: usize, templates: Vec<Template>, spns: Vec<Spn>) -> Model {
     Model {
         format: 1,
+        family: Default::default(),
         classes: ClassSet::new((0..classes).map(|c| format!("C{c}")).collect()).unwrap(),
         templates,
         spns,

@@ -91,6 +91,7 @@ pub fn random_model(c: usize, selective: bool, seed: u64) -> Model {
         .collect();
     Model {
         format: MODEL_FORMAT,
+        family: Default::default(),
         classes: classes(c),
         templates,
         spns,

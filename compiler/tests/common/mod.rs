@@ -8,6 +8,7 @@
 pub mod codegen;
 pub mod instance;
 pub mod learn;
+pub mod treemix;
 
 /// Every full assignment of variables with `classes[v]` classes each, the first
 /// variable slowest.
