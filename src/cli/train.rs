@@ -5,8 +5,12 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use graphspn_compiler::family::ModelFamily;
 use graphspn_compiler::learn::{Progress, TrainingSettings, train_model};
+use graphspn_compiler::mrf::Normalisation;
+use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
+use graphspn_compiler::treemix::{TreeTraining, train_tree_mixture};
 
 use super::common::{check_buildings, load_buildings, require_data_dir};
 use super::output::{Outputs, write_files};
@@ -17,7 +21,8 @@ use super::output::{Outputs, write_files};
     allow_negative_numbers = true,
     after_help = "Examples:
   graphspn train --out model.json
-  graphspn train --buildings Freiburg,Saarbrucken,Stockholm --epochs 20 --seed 3 --out model.json --force"
+  graphspn train --buildings Freiburg,Saarbrucken,Stockholm --epochs 20 --seed 3 --out model.json --force
+  graphspn train --family tree-mixture --coupling 1 --evidence-exponent 2 --trees 4 --out trees.json"
 )]
 pub struct TrainArgs {
     /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
@@ -42,9 +47,50 @@ pub struct TrainArgs {
     /// after training (< 1 flattens the learned statistics; default 1, none).
     #[arg(long)]
     temperature: Option<f64>,
+    /// Model family: `graphspn` (the paper's template SPNs) or `tree-mixture` (a
+    /// mixture of edge-covering spanning trees with one learned pairwise potential).
+    #[arg(long, default_value = "graphspn", value_parser = parse_family)]
+    family: ModelFamily,
+    /// Tree mixture: potential form of the edge co-occurrence counts (`joint`,
+    /// `conditional`, `normalised`, `pmi`; default normalised).
+    #[arg(long, value_parser = parse_normalisation)]
+    potential: Option<Normalisation>,
+    /// Tree mixture: coupling exponent of the potential (finite, ≥ 0; default 1).
+    #[arg(long)]
+    coupling: Option<f64>,
+    /// Tree mixture: the unary potential is the training class shares to this power
+    /// (finite; default 0, uniform).
+    #[arg(long)]
+    prior_exponent: Option<f64>,
+    /// Tree mixture: evidence rows enter as α^γ with this integer γ (1..=8; default 2).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
+    evidence_exponent: Option<u32>,
+    /// Tree mixture: spanning trees per map (1..=64; default 4).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=64))]
+    trees: Option<u64>,
+    /// Tree mixture: how the trees' marginals are combined (`posterior` or
+    /// `average`; default average).
+    #[arg(long, value_parser = parse_mixing)]
+    mixing: Option<Mixing>,
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
+}
+
+fn parse_family(s: &str) -> Result<ModelFamily, String> {
+    ModelFamily::from_name(s)
+        .ok_or_else(|| format!("unknown family {s:?}: graphspn or tree-mixture"))
+}
+
+fn parse_normalisation(s: &str) -> Result<Normalisation, String> {
+    Normalisation::ALL
+        .into_iter()
+        .find(|n| n.name() == s)
+        .ok_or_else(|| format!("unknown potential {s:?}: joint, conditional, normalised or pmi"))
+}
+
+fn parse_mixing(s: &str) -> Result<Mixing, String> {
+    Mixing::from_name(s).ok_or_else(|| format!("unknown mixing {s:?}: posterior or average"))
 }
 
 /// Runs `graphspn train`.
@@ -54,7 +100,63 @@ pub fn run(args: TrainArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.force);
     outputs.input("--data", &data);
     outputs.file("--out", &args.out)?;
+    let tree_flags = [
+        ("--potential", args.potential.is_some()),
+        ("--coupling", args.coupling.is_some()),
+        ("--prior-exponent", args.prior_exponent.is_some()),
+        ("--evidence-exponent", args.evidence_exponent.is_some()),
+        ("--trees", args.trees.is_some()),
+        ("--mixing", args.mixing.is_some()),
+    ];
+    let graphspn_flags = [
+        ("--epochs", args.epochs.is_some()),
+        (
+            "--decompositions-per-map",
+            args.decompositions_per_map.is_some(),
+        ),
+        ("--temperature", args.temperature.is_some()),
+    ];
+    let (wrong, family) = match args.family {
+        ModelFamily::Graphspn => (tree_flags.as_slice(), "tree-mixture"),
+        ModelFamily::TreeMixture => (graphspn_flags.as_slice(), "graphspn"),
+    };
+    if let Some((flag, _)) = wrong.iter().find(|f| f.1) {
+        anyhow::bail!("{flag} applies to --family {family} only");
+    }
     let maps = load_buildings(&data, &args.buildings)?;
+    if args.family == ModelFamily::TreeMixture {
+        let mut t = TreeTraining::default();
+        if let Some(p) = args.potential {
+            t.potentials.normalisation = p;
+        }
+        if let Some(c) = args.coupling {
+            t.potentials.coupling = c;
+        }
+        if let Some(r) = args.prior_exponent {
+            t.prior_exponent = r;
+        }
+        if let Some(g) = args.evidence_exponent {
+            t.evidence_exponent = g;
+        }
+        if let Some(n) = args.trees {
+            t.trees = n as usize;
+        }
+        if let Some(m) = args.mixing {
+            t.mixing = m;
+        }
+        let start = Instant::now();
+        let model = train_tree_mixture(&maps, &t)?;
+        let text = model.to_json()?;
+        write_files(&[(&args.out, text.as_bytes())])?;
+        eprintln!(
+            "trained a tree mixture ({}) on {} maps in {:.2} s; wrote {}",
+            t.label(),
+            maps.len(),
+            start.elapsed().as_secs_f64(),
+            args.out.display()
+        );
+        return Ok(());
+    }
     let mut settings = TrainingSettings {
         seed: args.seed,
         ..TrainingSettings::default()
