@@ -1,11 +1,10 @@
 //! Generated calls never touch the heap: a counting global allocator sees zero
-//! allocations across thousands of checked and unchecked queries on the demo map.
+//! allocations across thousands of checked and unchecked queries and streaming-state
+//! updates on the demo map's modules of both model families (GraphSPN, tree mixture).
 //! (Only one test in this binary, so no other test thread allocates meanwhile.)
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
-
-use graphspn_generated::demo_floor::{self, Evidence, Labels, Marginals, NUM_CLASSES, NUM_PLACES};
 
 struct Counting;
 
@@ -33,33 +32,57 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
+/// Thousands of checked and unchecked queries and state updates on module `$m`;
+/// returns a checksum.
+macro_rules! exercise {
+    ($m:ident) => {{
+        use graphspn_generated::$m::{
+            self as m, Evidence, Labels, Marginals, NUM_CLASSES, NUM_PLACES,
+        };
+        let mut e: Evidence = [[0.5; NUM_CLASSES]; NUM_PLACES];
+        let mut out: Marginals = [[0.0; NUM_CLASSES]; NUM_PLACES];
+        let mut labels: Labels = [0; NUM_PLACES];
+        let mut one = [0.0f32; NUM_CLASSES];
+        let mut s = m::State::new();
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut sum = 0.0f64;
+        for i in 0..1_000usize {
+            // xorshift evidence, with an invalid row every 7th call to exercise the error path.
+            for row in e.iter_mut() {
+                for x in row.iter_mut() {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    *x = (state >> 40) as f32 / (1u64 << 24) as f32 + 1e-6;
+                }
+            }
+            if i % 7 == 0 {
+                e[i % NUM_PLACES][0] = f32::NAN;
+            }
+            sum += m::log_likelihood(&e).map_or(0.0, f64::from);
+            sum += m::marginals(&e, &mut out).map_or(0.0, f64::from);
+            sum += m::mpe(&e, &mut labels).map_or(0.0, f64::from);
+            sum += m::labelled_log_likelihood(&labels, &e).map_or(0.0, f64::from);
+            sum += m::marginals_unchecked(&e, &mut out).map_or(0.0, f64::from);
+            let p = i % NUM_PLACES;
+            let _ = s.observe(p, &e[p]);
+            let _ = s.set_evidence((p * 7) % NUM_PLACES, &e[p]);
+            if i % 50 == 0 {
+                let _ = s.set_all(&e);
+                let _ = s.clear_evidence(p);
+            }
+            sum += s.marginals(&mut out).map_or(0.0, f64::from);
+            sum += s.marginal(p, &mut one).map_or(0.0, |()| f64::from(one[0]));
+            sum += s.log_likelihood().map_or(0.0, f64::from);
+        }
+        sum
+    }};
+}
+
 #[test]
 fn generated_calls_do_not_allocate() {
-    let mut e: Evidence = [[0.5; NUM_CLASSES]; NUM_PLACES];
-    let mut out: Marginals = [[0.0; NUM_CLASSES]; NUM_PLACES];
-    let mut labels: Labels = [0; NUM_PLACES];
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut sum = 0.0f64;
     let before = ALLOCATIONS.load(Ordering::SeqCst);
-    for i in 0..2_000usize {
-        // xorshift evidence, with an invalid row every 7th call to exercise the error path.
-        for row in e.iter_mut() {
-            for x in row.iter_mut() {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                *x = (state >> 40) as f32 / (1u64 << 24) as f32 + 1e-6;
-            }
-        }
-        if i % 7 == 0 {
-            e[i % NUM_PLACES][0] = f32::NAN;
-        }
-        sum += demo_floor::log_likelihood(&e).map_or(0.0, f64::from);
-        sum += demo_floor::marginals(&e, &mut out).map_or(0.0, f64::from);
-        sum += demo_floor::mpe(&e, &mut labels).map_or(0.0, f64::from);
-        sum += demo_floor::labelled_log_likelihood(&labels, &e).map_or(0.0, f64::from);
-        sum += demo_floor::marginals_unchecked(&e, &mut out).map_or(0.0, f64::from);
-    }
+    let sum = exercise!(demo_floor) + exercise!(demo_floor_trees);
     let after = ALLOCATIONS.load(Ordering::SeqCst);
     assert!(sum.is_finite());
     assert_eq!(after - before, 0, "generated calls allocated");

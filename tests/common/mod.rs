@@ -609,3 +609,4 @@ fn check_batch(
         }
     }
 }
+pub mod trees;

@@ -41,6 +41,12 @@ pub trait Lanes:
     type Scalar: Real;
     /// All lanes `0`.
     const ZERO: Self;
+    /// Lanes per vector (1 for a scalar).
+    const WIDTH: usize;
+    /// The lanes as a slice of [`Lanes::WIDTH`] scalars.
+    fn lanes(&self) -> &[Self::Scalar];
+    /// Lane-wise flush of tiny values: `0` where `self < t`, `self` elsewhere.
+    fn flush(self, t: Self) -> Self;
     /// All lanes `s`.
     fn splat(s: Self::Scalar) -> Self;
     /// `self·a + b` per lane (fused where the target has FMA).
@@ -83,6 +89,15 @@ macro_rules! lanes_impl {
         impl Lanes for $v {
             type Scalar = $t;
             const ZERO: Self = $v::ZERO;
+            const WIDTH: usize = core::mem::size_of::<$v>() / core::mem::size_of::<$t>();
+            #[inline(always)]
+            fn lanes(&self) -> &[$t] {
+                self.as_array()
+            }
+            #[inline(always)]
+            fn flush(self, t: Self) -> Self {
+                self.simd_lt(t).select($v::ZERO, self)
+            }
             #[inline(always)]
             fn splat(s: $t) -> Self {
                 $v::splat(s)
@@ -144,6 +159,15 @@ macro_rules! scalar_lanes {
         impl Lanes for $t {
             type Scalar = $t;
             const ZERO: Self = 0.0;
+            const WIDTH: usize = 1;
+            #[inline(always)]
+            fn lanes(&self) -> &[$t] {
+                core::slice::from_ref(self)
+            }
+            #[inline(always)]
+            fn flush(self, t: Self) -> Self {
+                if self < t { 0.0 } else { self }
+            }
             #[inline(always)]
             fn splat(s: $t) -> Self {
                 s

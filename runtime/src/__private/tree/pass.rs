@@ -1,0 +1,401 @@
+//! The stateless passes of generated tree-mixture code: log-likelihood (labelled or
+//! not), marginals and MPE (see the module docs of `tree`).
+
+use super::super::{Acc, Lanes, Real, above, best, mix};
+use super::{
+    Forest, NONE, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec, mul, norm,
+    norm_flush, phi,
+};
+use crate::EvidenceError;
+
+/// `acc · 2^(k - z_exp) · e^(-z_rem)`: a forest's value over its `Z_t`.
+#[inline(always)]
+pub(crate) fn over_z<T: Real>(mut acc: Acc<T>, k: i32, f: &Forest<T>) -> Acc<T> {
+    acc.mul_pow2(k.wrapping_sub(f.z_exp));
+    acc.mul_log(T::ZERO - f.z_rem);
+    acc
+}
+
+/// One post-order sweep of forest `f` with a stack of `H` rows (`H` > the forest's
+/// height + 1): the belief of every place (`φ` of the place, then its children's
+/// messages multiplied in as they complete, exactly the order of [`belief`]) goes to
+/// `root(v, b)` for a root and to `message(v, b)` otherwise, whose result is
+/// multiplied into the parent's belief. Places with a label `< C` in `labels` are
+/// restricted to it. Returns the sum of the exponents of every normalisation.
+#[inline(always)]
+fn sweep<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
+    m: &TreeModel<V, C, K>,
+    f: &Forest<V::Scalar>,
+    e: &[[V::Scalar; C]; N],
+    labels: &[u16; N],
+    mut message: impl FnMut(usize, &[V; K]) -> [V; K],
+    mut root: impl FnMut(usize, &[V; K]),
+) -> i32 {
+    let mut slots = [[V::ZERO; K]; H];
+    let mut has = [false; H];
+    let mut k = 0i32;
+    let factor = |v: usize, k: &mut i32| match e.get(v) {
+        Some(row) => {
+            let (b, eb) = phi(m, row, labels.get(v).copied().unwrap_or(NONE));
+            *k = k.wrapping_add(eb);
+            b
+        }
+        None => [V::ZERO; K],
+    };
+    for &[v, d] in f.post {
+        let (v, d) = (usize::from(v), usize::from(d));
+        let b = match (has.get_mut(d + 1), slots.get(d + 1)) {
+            (Some(h), Some(s)) if *h => {
+                *h = false;
+                *s
+            }
+            _ => factor(v, &mut k),
+        };
+        if d == 0 {
+            root(v, &b);
+            continue;
+        }
+        let mut msg = message(v, &b);
+        k = k.wrapping_add(norm(&mut msg));
+        if let (Some(h), Some(s)) = (has.get_mut(d), slots.get_mut(d)) {
+            if !*h {
+                *s = factor(usize::from(f.parent_of(v)), &mut k);
+                *h = true;
+            }
+            mul(s, &msg);
+            k = k.wrapping_add(norm_flush(s));
+        }
+    }
+    k
+}
+
+/// `P_t(α)`, the value of forest `f` on evidence `e` (places with a label `< C` in
+/// `labels` restricted to it, `u16::MAX`: the whole row; `max`: the max-product value
+/// `max_y P_t(y) Π α^γ`), in one post-order sweep with a stack of `H` rows.
+#[inline(never)]
+pub fn tree_value<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
+    m: &TreeModel<V, C, K>,
+    f: &Forest<V::Scalar>,
+    e: &[[V::Scalar; C]; N],
+    labels: &[u16; N],
+    max: bool,
+) -> Acc<V::Scalar> {
+    let mut acc = Acc::ONE;
+    let k = sweep::<V, C, K, N, H>(
+        m,
+        f,
+        e,
+        labels,
+        |_, b| {
+            if max {
+                maxvec(&m.psi, b)
+            } else {
+                matvec(&m.psi, b)
+            }
+        },
+        |_, b| acc.mul(if max { hmax(b) } else { hsum(b) }),
+    );
+    over_z(acc, k, f)
+}
+
+/// The values of every forest (see [`tree_value`]).
+#[inline(always)]
+fn values<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    labels: &[u16; N],
+    max: bool,
+) -> [Acc<V::Scalar>; T] {
+    let mut accs = [Acc::ONE; T];
+    for (a, f) in accs.iter_mut().zip(m.forests) {
+        *a = tree_value::<V, C, K, N, H>(m, f, e, labels, max);
+    }
+    accs
+}
+
+/// `ln S(α)` with every place of `labels` restricted to its label (`u16::MAX`: the
+/// whole row): `ln (1/T) Σ_t P_t(α)`. Relative error a few `ε` per place.
+pub fn tree_log_likelihood<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    labels: &[u16; N],
+) -> Result<V::Scalar, EvidenceError> {
+    let accs = values::<V, C, K, N, H, T>(m, e, labels, false);
+    match mix(&accs) {
+        Some((l, _)) if l > V::Scalar::NEG_INFINITY => Ok(l),
+        _ => Err(EvidenceError::ZeroLikelihood),
+    }
+}
+
+/// Upward pass of forest `f` keeping, in `msgs`, every non-root place's message to
+/// its parent and every root's belief (normalised), and in `exps` (when given) each
+/// place's exponent; returns the product of the roots' sums and the sum of the
+/// exponents (the forest's value over `Z_t` is their product over `Z_t`).
+#[inline(never)]
+pub fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usize>(
+    m: &TreeModel<V, C, K>,
+    f: &Forest<V::Scalar>,
+    e: &[[V::Scalar; C]; N],
+    msgs: &mut [[V; K]; N],
+    mut exps: Option<&mut [i32; N]>,
+) -> (Acc<V::Scalar>, i32) {
+    let mut k = 0i32;
+    let mut acc = Acc::ONE;
+    for &[v, d] in f.post {
+        let v = usize::from(v);
+        let (b, eb) = belief(m, f, e, msgs, v);
+        let (out, ev) = if d == 0 {
+            acc.mul(hsum(&b));
+            (b, eb)
+        } else {
+            let mut msg = matvec(&m.psi, &b);
+            let em = norm(&mut msg);
+            (msg, eb.wrapping_add(em))
+        };
+        if let Some(s) = msgs.get_mut(v) {
+            *s = out;
+        }
+        if let Some(x) = exps.as_deref_mut().and_then(|x| x.get_mut(v)) {
+            *x = ev;
+        }
+        k = k.wrapping_add(ev);
+    }
+    (acc, k)
+}
+
+/// `r = a / (b + pad)`: the parent's full belief without the child's message (the
+/// padding lanes, 0 in both, stay 0).
+#[inline(always)]
+fn without<V: Lanes, const K: usize>(a: &[V; K], b: &[V; K], pad: &[V; K]) -> [V; K] {
+    let mut r = *a;
+    for ((x, &y), &p) in r.iter_mut().zip(b).zip(pad) {
+        *x = *x / (y + p);
+    }
+    r
+}
+
+/// `full(v) = belief(v) ⊙ normalised ψ·(full(parent) / m_v)`, normalised.
+#[inline(always)]
+pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usize>(
+    m: &TreeModel<V, C, K>,
+    f: &Forest<V::Scalar>,
+    e: &[[V::Scalar; C]; N],
+    msgs: &[[V; K]; N],
+    v: usize,
+    parent_full: &[V; K],
+) -> [V; K] {
+    let Some(mv) = msgs.get(v) else {
+        return [V::ZERO; K];
+    };
+    let mut down = matvec(&m.psi, &without(parent_full, mv, &m.pad));
+    norm(&mut down);
+    let (mut b, _) = belief(m, f, e, msgs, v);
+    mul(&mut b, &down);
+    norm_flush(&mut b);
+    b
+}
+
+/// `out[v] += w · full / Σ full`.
+#[inline(always)]
+pub(crate) fn add_marginal<V: Lanes, const K: usize, const C: usize>(
+    out: &mut [V::Scalar; C],
+    full: &[V; K],
+    w: V::Scalar,
+) {
+    let s = hsum(full);
+    if !above(s, V::Scalar::ZERO) {
+        return;
+    }
+    let k = w / s;
+    for (o, &x) in out.iter_mut().zip(full.iter().flat_map(|v| v.lanes())) {
+        *o += k * x;
+    }
+}
+
+/// Downward pass of forest `f` from its stored upward pass `msgs` (see
+/// [`tree_upward`]): adds `w · P_t(Y_v | α)` to `out[v]` for every place, with a stack
+/// of `H` rows (one per depth).
+#[inline(never)]
+pub fn tree_downward<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
+    m: &TreeModel<V, C, K>,
+    f: &Forest<V::Scalar>,
+    e: &[[V::Scalar; C]; N],
+    msgs: &[[V; K]; N],
+    w: V::Scalar,
+    out: &mut [[V::Scalar; C]; N],
+) {
+    let mut stack = [[V::ZERO; K]; H];
+    for &[v, d] in f.post.iter().rev() {
+        let (v, d) = (usize::from(v), usize::from(d));
+        let full = match d.checked_sub(1).and_then(|p| stack.get(p)) {
+            Some(pf) => full_below(m, f, e, msgs, v, pf),
+            None => msgs.get(v).copied().unwrap_or([V::ZERO; K]),
+        };
+        if let Some(s) = stack.get_mut(d) {
+            *s = full;
+        }
+        if let Some(o) = out.get_mut(v) {
+            add_marginal(o, &full, w);
+        }
+    }
+}
+
+/// Every row of `out` divided by its sum.
+#[inline(always)]
+pub(crate) fn normalise_rows<T: Real, const C: usize, const N: usize>(out: &mut [[T; C]; N]) {
+    for row in out.iter_mut() {
+        let mut s = T::ZERO;
+        for &x in row.iter() {
+            s += x;
+        }
+        if s > T::ZERO {
+            let inv = T::ONE / s;
+            for x in row.iter_mut() {
+                *x *= inv;
+            }
+        }
+    }
+}
+
+/// Writes `P(Y_v = c | α)` of every place into `out` (mixed as the model says) and
+/// returns `ln S(α)`: per forest a stored upward pass (`O(places · C)` scratch) and a
+/// downward pass. With posterior mixing the forests' weights are accumulated online
+/// (the running sum is rescaled when a larger forest value appears).
+pub fn tree_marginals<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    out: &mut [[V::Scalar; C]; N],
+) -> Result<V::Scalar, EvidenceError> {
+    let one = V::Scalar::ONE;
+    *out = [[V::Scalar::ZERO; C]; N];
+    let mut msgs = [[V::ZERO; K]; N];
+    let mut accs = [Acc::ONE; T];
+    let mut top: Option<Acc<V::Scalar>> = None;
+    for (a, f) in accs.iter_mut().zip(m.forests) {
+        let (acc, k) = tree_upward(m, f, e, &mut msgs, None);
+        let acc = over_z(acc, k, f);
+        *a = acc;
+        if acc.is_zero() {
+            continue;
+        }
+        let w = match top {
+            _ if m.average => one,
+            None => {
+                top = Some(acc);
+                one
+            }
+            Some(t) => {
+                let r = acc.ln_ratio(&t);
+                if r > V::Scalar::ZERO {
+                    let down = (V::Scalar::ZERO - r).exp();
+                    for x in out.iter_mut().flatten() {
+                        *x *= down;
+                    }
+                    top = Some(acc);
+                    one
+                } else {
+                    r.exp()
+                }
+            }
+        };
+        tree_downward::<V, C, K, N, H>(m, f, e, &msgs, w, out);
+    }
+    let Some((l, _)) = mix(&accs).filter(|(l, _)| *l > V::Scalar::NEG_INFINITY) else {
+        return Err(EvidenceError::ZeroLikelihood);
+    };
+    normalise_rows(out);
+    Ok(l)
+}
+
+/// Labels of the max-product labelling of forest `f`: a max-product sweep keeping
+/// `arg[v][a]` (the best class of `v` when its parent has class `a`), then labels
+/// top-down.
+#[inline(never)]
+fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
+    m: &TreeModel<V, C, K>,
+    f: &Forest<V::Scalar>,
+    e: &[[V::Scalar; C]; N],
+    none: &[u16; N],
+    labels: &mut [u16; N],
+) {
+    let mut arg = [[0u8; C]; N];
+    sweep::<V, C, K, N, H>(
+        m,
+        f,
+        e,
+        none,
+        |v, b| match arg.get_mut(v) {
+            Some(a) => argvec(&m.psi, b, a),
+            None => [V::ZERO; K],
+        },
+        |v, b| {
+            if let Some(l) = labels.get_mut(v) {
+                *l = argmax(b);
+            }
+        },
+    );
+    for &[v, d] in f.post.iter().rev() {
+        let v = usize::from(v);
+        if d == 0 {
+            continue;
+        }
+        let p = usize::from(f.parent_of(v));
+        let lp = labels.get(p).map_or(0, |&l| usize::from(l));
+        let best = arg
+            .get(v)
+            .and_then(|a| a.get(lp))
+            .map_or(0, |&x| u16::from(x));
+        if let Some(l) = labels.get_mut(v) {
+            *l = best;
+        }
+    }
+}
+
+/// Writes the most probable `(forest, labelling)` pair's labelling into `labels`
+/// (`none`: every place unlabelled) and returns its natural-log value `max_t max_y ln((1/T) P_t(y) Π_v α_v(y_v)^γ)` (ties:
+/// the first forest; within a forest the smallest class).
+pub fn tree_mpe<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    none: &[u16; N],
+    labels: &mut [u16; N],
+) -> Result<V::Scalar, EvidenceError> {
+    let accs = values::<V, C, K, N, H, T>(m, e, none, true);
+    let (Some(t), Some(f)) = (best(&accs), best(&accs).and_then(|t| m.forests.get(t))) else {
+        return Err(EvidenceError::ZeroLikelihood);
+    };
+    let v = accs.get(t).map_or(V::Scalar::NEG_INFINITY, |a| a.ln()) - V::Scalar::from_index(T).ln();
+    if !above(v, V::Scalar::NEG_INFINITY) {
+        return Err(EvidenceError::ZeroLikelihood);
+    }
+    mpe_labels::<V, C, K, N, H>(m, f, e, none, labels);
+    Ok(v)
+}
