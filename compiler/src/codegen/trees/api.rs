@@ -134,8 +134,8 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
             }
 
             /// The current evidence rows (all ones where a place has none; a row fused by
-            /// `observe` is the product of its observations scaled by a power of two to a
-            /// largest entry in `[1, 2)`).
+            /// `observe` is the product of its observations renormalised to a largest
+            /// entry of 1).
             pub fn evidence(&self) -> &Evidence {
                 if self.0.is_ready() { self.0.rows() } else { &NO_EVIDENCE }
             }

@@ -93,13 +93,23 @@ fn deficits<T: Real, const C: usize>(mant: &[T; C], ex: &[i32; C], best: i32) ->
     d
 }
 
-/// The row of an exact form: `mantissa · 2^-deficit`, classes beyond the normal range 0.
+/// The row of an exact form: `mantissa · 2^-deficit` (exact), classes beyond the normal
+/// range 0, divided by its largest entry (which becomes exactly 1).
 fn row_of<T: Real, const C: usize>(mant: &[T; C], def: &[u16; C]) -> [T; C] {
     let mut r = [T::ZERO; C];
+    let mut max = T::ZERO;
     for ((o, &m), &d) in r.iter_mut().zip(mant).zip(def) {
         let d = i32::from(d);
         if d <= -T::MIN_EXP {
             *o = m * T::pow2(-d);
+            if *o > max {
+                max = *o;
+            }
+        }
+    }
+    if max > T::ZERO {
+        for o in r.iter_mut() {
+            *o = *o / max;
         }
     }
     r
