@@ -20,7 +20,8 @@
 //! - Evidence: a place's factor is `φ = u ⊙ x^γ` with `x = α / 2^E` (`E` the binary
 //!   exponent of the row's largest entry: exact), or for a labelled place only the
 //!   label's entry (`x_l = α_l / 2^{E_l}`). Entries of `x` below `2^⌈TINY_EXP/γ⌉` are
-//!   flushed to 0 before the power, so every nonzero `x^γ` is at least `2^TINY_EXP`.
+//!   flushed to 0 before the power, so every nonzero `x^γ` is at least `2^TINY_EXP`
+//!   and every nonzero entry of `φ` at least `2^(TINY_EXP - 20)`.
 //! - Messages `ψ·b` need no flush: `ψ > 0` with a largest/smallest ratio of at most
 //!   `1e6 < 2^20` (checked by the model), so every entry of a normalised message is at
 //!   least `2^-20`.
@@ -179,13 +180,21 @@ pub(crate) fn norm<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
     e
 }
 
-/// [`norm`], then entries below `2^TINY_EXP` flushed to zero (see the module docs).
+/// [`norm`], and entries below `2^TINY_EXP` (after scaling) flushed to zero (see the
+/// module docs), in one sweep.
 #[inline(always)]
 pub(crate) fn norm_flush<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
-    let e = norm(a);
-    let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP));
+    let m = hmax(a);
+    if !above(m, V::Scalar::ZERO) {
+        return 0;
+    }
+    let (_, e) = m.split();
+    let (s, t) = (
+        V::splat(V::Scalar::pow2(-e)),
+        V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP)),
+    );
     for x in a.iter_mut() {
-        *x = x.flush(t);
+        *x = (*x * s).flush(t);
     }
     e
 }
@@ -295,8 +304,10 @@ fn scale_pow2<V: Lanes, const K: usize>(x: &mut [V; K], e: i32) {
     }
 }
 
-/// The evidence factor `φ` of a place (see the module docs), normalised, and its
-/// exponent: the exact factor is `φ · 2^e`. `label < C` keeps only that class.
+/// The evidence factor `φ` of a place (see the module docs) and its exponent: the
+/// exact factor is `φ · 2^e`. Not normalised: its largest entry lies in
+/// `[2^-20, 2^γ)` (`x`'s in `[1, 2)`, `u`'s in `[2^-20, 1]`), every nonzero entry is at
+/// least `2^(TINY_EXP - 20)`. `label < C` keeps only that class.
 #[inline(always)]
 pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
     m: &TreeModel<V, C, K>,
@@ -328,8 +339,7 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
         mul(&mut x, &base);
     }
     mul(&mut x, &m.unary);
-    let k = norm(&mut x);
-    (x, (m.gamma as i32).wrapping_mul(e).wrapping_add(k))
+    (x, (m.gamma as i32).wrapping_mul(e))
 }
 
 /// The belief of place `v` in forest `f`: `φ_v ⊙ Π_children m_c` with the children's

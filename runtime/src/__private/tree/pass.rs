@@ -178,17 +178,30 @@ pub fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usize>(
 }
 
 /// `r = a / (b + pad)`: the parent's full belief without the child's message (the
-/// padding lanes, 0 in both, stay 0).
+/// padding lanes, 0 in both, stay 0; rows without padding lanes skip the addition).
 #[inline(always)]
-fn without<V: Lanes, const K: usize>(a: &[V; K], b: &[V; K], pad: &[V; K]) -> [V; K] {
+fn without<V: Lanes, const C: usize, const K: usize>(
+    a: &[V; K],
+    b: &[V; K],
+    pad: &[V; K],
+) -> [V; K] {
     let mut r = *a;
-    for ((x, &y), &p) in r.iter_mut().zip(b).zip(pad) {
-        *x = *x / (y + p);
+    if K * V::WIDTH > C {
+        for ((x, &y), &p) in r.iter_mut().zip(b).zip(pad) {
+            *x = *x / (y + p);
+        }
+    } else {
+        for (x, &y) in r.iter_mut().zip(b) {
+            *x = *x / y;
+        }
     }
     r
 }
 
-/// `full(v) = belief(v) ⊙ normalised ψ·(full(parent) / m_v)`, normalised.
+/// `full(v) = belief(v) ⊙ ψ·(full(parent) / m_v)`, normalised. The downward message is
+/// not normalised: `full(parent)`'s largest entry is in `[1, 2)` and `m_v`'s entries in
+/// `[2^-20, 2)`, so its entries lie in `[2^-21, C·2^21)` and every nonzero product with
+/// the belief stays far inside the normal range.
 #[inline(always)]
 pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usize>(
     m: &TreeModel<V, C, K>,
@@ -201,8 +214,7 @@ pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usiz
     let Some(mv) = msgs.get(v) else {
         return [V::ZERO; K];
     };
-    let mut down = matvec(&m.psi, &without(parent_full, mv, &m.pad));
-    norm(&mut down);
+    let down = matvec(&m.psi, &without::<V, C, K>(parent_full, mv, &m.pad));
     let (mut b, _) = belief(m, f, e, msgs, v);
     mul(&mut b, &down);
     norm_flush(&mut b);
