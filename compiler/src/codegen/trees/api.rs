@@ -94,7 +94,7 @@ pub(super) fn stateless_api(cx: &Context) -> TokenStream {
 
         /// Like [`mpe`], without validating the evidence.
         pub fn mpe_unchecked(e: &Evidence, labels: &mut Labels) -> Result<#t, #err> {
-            #rt::tree_mpe #g (&MODEL, e, &ALL_UNKNOWN, labels)
+            #rt::tree_mpe #g (&MODEL, e, labels)
         }
 
         #mpe

@@ -220,7 +220,9 @@ pub(super) fn report(plans: &[ForestPlan], cx: &Context) -> CodeReport {
     // Calls, saved registers and the accumulators of every forest; a pass's row
     // temporaries (belief, message, evidence factor, its power, the parent's row,
     // the division, the downward message) with room for spills.
-    let base = 1024 + t * (24 + s);
+    // On SIMD hosts every entry point first computes every place's evidence factor.
+    let cache = if cx.width > 1 { n * (row + 4) } else { 0 };
+    let base = 1024 + t * (24 + s) + cache;
     let temps = 16 * row + 512;
     let value = h * (row + 1) + temps;
     let stack_log_likelihood = base + value;

@@ -136,21 +136,13 @@ fn scale<V: Lanes, const K: usize>(a: &mut [V; K], s: V::Scalar) {
 /// Largest entry of a row (`0` for a row of zeros; padding lanes are 0).
 #[inline(always)]
 pub(crate) fn hmax<V: Lanes, const K: usize>(a: &[V; K]) -> V::Scalar {
-    let m = V::max_of(a);
-    m.lanes()
-        .iter()
-        .fold(V::Scalar::ZERO, |x, &y| if y > x { y } else { x })
+    V::max_of(a).hmax()
 }
 
 /// Sum of the entries of a row.
 #[inline(always)]
 pub(crate) fn hsum<V: Lanes, const K: usize>(a: &[V; K]) -> V::Scalar {
-    let s = V::sum(a);
-    let mut t = V::Scalar::ZERO;
-    for &x in s.lanes() {
-        t += x;
-    }
-    t
+    V::sum(a).hsum()
 }
 
 /// Index of the largest entry of a row (lowest class on ties; 0 for a zero row).
@@ -205,8 +197,17 @@ fn each_class<V: Lanes, const K: usize, const C: usize>(
     b: &[V; K],
     mut f: impl FnMut(usize, V::Scalar),
 ) {
-    for (j, &x) in b.iter().flat_map(|v| v.lanes()).take(C).enumerate() {
-        f(j, x);
+    for (k, v) in b.iter().enumerate() {
+        let lanes = v.lanes();
+        for l in 0..V::WIDTH {
+            let j = k * V::WIDTH + l;
+            if j >= C {
+                return;
+            }
+            if let Some(&x) = lanes.get(l) {
+                f(j, x);
+            }
+        }
     }
 }
 
@@ -324,9 +325,8 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
         }
         (pack::<V, C, K>(&one), e)
     } else {
-        let max = row.iter().fold(zero, |a, &b| if b > a { b } else { a });
-        let (_, e) = max.split();
         let mut x = pack::<V, C, K>(row);
+        let (_, e) = hmax(&x).split();
         scale_pow2(&mut x, e);
         let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP / m.gamma.max(1) as i32));
         for v in x.iter_mut() {
@@ -342,20 +342,68 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
     (x, (m.gamma as i32).wrapping_mul(e))
 }
 
+/// Where the passes take each place's evidence factor `φ` (and its exponent) from.
+pub(crate) trait Factors<V: Lanes, const K: usize> {
+    /// `φ` of place `v` and its exponent (see [`phi`]); zeros when out of range.
+    fn factor(&self, v: usize) -> ([V; K], i32);
+}
+
+/// `φ` computed from the evidence rows when needed (labels: places `< C` restricted).
+pub(crate) struct Rows<'a, V: Lanes, const C: usize, const K: usize, const N: usize> {
+    pub m: &'a TreeModel<V, C, K>,
+    pub e: &'a [[V::Scalar; C]; N],
+    pub labels: Option<&'a [u16; N]>,
+}
+
+impl<V: Lanes, const C: usize, const K: usize, const N: usize> Factors<V, K>
+    for Rows<'_, V, C, K, N>
+{
+    #[inline(always)]
+    fn factor(&self, v: usize) -> ([V; K], i32) {
+        let label = self.labels.and_then(|l| l.get(v)).copied().unwrap_or(NONE);
+        match self.e.get(v) {
+            Some(row) => phi(self.m, row, label),
+            None => ([V::ZERO; K], 0),
+        }
+    }
+}
+
+/// `φ` of every place computed once (SIMD hosts: the passes of all forests share it).
+pub(crate) struct Cached<'a, V: Lanes, const K: usize, const N: usize> {
+    pub phi: &'a [[V; K]; N],
+    pub exp: &'a [i32; N],
+}
+
+impl<V: Lanes, const K: usize, const N: usize> Factors<V, K> for Cached<'_, V, K, N> {
+    #[inline(always)]
+    fn factor(&self, v: usize) -> ([V; K], i32) {
+        match (self.phi.get(v), self.exp.get(v)) {
+            (Some(&p), Some(&x)) => (p, x),
+            _ => ([V::ZERO; K], 0),
+        }
+    }
+}
+
+impl<V: Lanes, const C: usize, const K: usize, const N: usize> Rows<'_, V, C, K, N> {
+    /// Every place's `φ` into `phi` and `exp` (for [`Cached`]).
+    #[inline(never)]
+    pub fn fill(&self, phi: &mut [[V; K]; N], exp: &mut [i32; N]) {
+        for (v, (p, x)) in phi.iter_mut().zip(exp.iter_mut()).enumerate() {
+            (*p, *x) = self.factor(v);
+        }
+    }
+}
+
 /// The belief of place `v` in forest `f`: `φ_v ⊙ Π_children m_c` with the children's
 /// messages from `msgs`, normalised (flushed after every factor), and its exponent.
 #[inline(always)]
-pub(crate) fn belief<V: Lanes, const C: usize, const K: usize, const N: usize>(
-    m: &TreeModel<V, C, K>,
+pub(crate) fn belief<V: Lanes, const K: usize, const N: usize>(
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
-    e: &[[V::Scalar; C]; N],
     msgs: &[[V; K]; N],
     v: usize,
 ) -> ([V; K], i32) {
-    let Some(row) = e.get(v) else {
-        return ([V::ZERO; K], 0);
-    };
-    let (mut b, mut k) = phi(m, row, NONE);
+    let (mut b, mut k) = src.factor(v);
     for &c in f.kids_of(v) {
         if let Some(mc) = msgs.get(usize::from(c)) {
             mul(&mut b, mc);

@@ -1,10 +1,13 @@
 //! The stateless passes of generated tree-mixture code: log-likelihood (labelled or
-//! not), marginals and MPE (see the module docs of `tree`).
+//! not), marginals and MPE (see the module docs of `tree`). On SIMD hosts
+//! (`V::WIDTH > 1`) every entry point first computes the evidence factor `φ` of every
+//! place once ([`Cached`]: `O(places · C)` scratch), which every forest's passes then
+//! share; on microcontrollers each pass computes `φ` where it needs it ([`Rows`]).
 
 use super::super::{Acc, Lanes, Real, above, best, mix};
 use super::{
-    Forest, NONE, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec, mul, norm,
-    norm_flush, phi,
+    Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec,
+    mul, norm, norm_flush,
 };
 use crate::EvidenceError;
 
@@ -16,31 +19,58 @@ pub(crate) fn over_z<T: Real>(mut acc: Acc<T>, k: i32, f: &Forest<T>) -> Acc<T> 
     acc
 }
 
+/// Runs `body` with the factor source of the target: [`Cached`] (every `φ` computed
+/// once, on the stack) on SIMD hosts, [`Rows`] on microcontrollers.
+#[inline(always)]
+pub(crate) fn with_factors<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    labels: Option<&[u16; N]>,
+    body: impl FnOnce(&dyn Factors<V, K>) -> R,
+) -> R {
+    let rows = Rows { m, e, labels };
+    if V::WIDTH > 1 {
+        cached(&rows, body)
+    } else {
+        body(&rows)
+    }
+}
+
+/// [`with_factors`] on SIMD hosts (its own frame holds the cache).
+#[inline(never)]
+fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
+    rows: &Rows<'_, V, C, K, N>,
+    body: impl FnOnce(&dyn Factors<V, K>) -> R,
+) -> R {
+    let mut phi = [[V::ZERO; K]; N];
+    let mut exp = [0i32; N];
+    rows.fill(&mut phi, &mut exp);
+    body(&Cached {
+        phi: &phi,
+        exp: &exp,
+    })
+}
+
 /// One post-order sweep of forest `f` with a stack of `H` rows (`H` > the forest's
 /// height + 1): the belief of every place (`φ` of the place, then its children's
 /// messages multiplied in as they complete, exactly the order of [`belief`]) goes to
 /// `root(v, b)` for a root and to `message(v, b)` otherwise, whose result is
-/// multiplied into the parent's belief. Places with a label `< C` in `labels` are
-/// restricted to it. Returns the sum of the exponents of every normalisation.
+/// multiplied into the parent's belief. Returns the sum of the exponents of every
+/// normalisation.
 #[inline(always)]
-fn sweep<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
-    m: &TreeModel<V, C, K>,
+fn sweep<V: Lanes, const K: usize, const H: usize>(
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
-    e: &[[V::Scalar; C]; N],
-    labels: &[u16; N],
     mut message: impl FnMut(usize, &[V; K]) -> [V; K],
     mut root: impl FnMut(usize, &[V; K]),
 ) -> i32 {
     let mut slots = [[V::ZERO; K]; H];
     let mut has = [false; H];
     let mut k = 0i32;
-    let factor = |v: usize, k: &mut i32| match e.get(v) {
-        Some(row) => {
-            let (b, eb) = phi(m, row, labels.get(v).copied().unwrap_or(NONE));
-            *k = k.wrapping_add(eb);
-            b
-        }
-        None => [V::ZERO; K],
+    let factor = |v: usize, k: &mut i32| {
+        let (b, eb) = src.factor(v);
+        *k = k.wrapping_add(eb);
+        b
     };
     for &[v, d] in f.post {
         let (v, d) = (usize::from(v), usize::from(d));
@@ -69,23 +99,19 @@ fn sweep<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usiz
     k
 }
 
-/// `P_t(α)`, the value of forest `f` on evidence `e` (places with a label `< C` in
-/// `labels` restricted to it, `u16::MAX`: the whole row; `max`: the max-product value
-/// `max_y P_t(y) Π α^γ`), in one post-order sweep with a stack of `H` rows.
+/// `P_t(α)`, the value of forest `f` (`max`: the max-product value `max_y P_t(y) Π
+/// α^γ`), in one post-order sweep with a stack of `H` rows.
 #[inline(never)]
-pub fn tree_value<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
+fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
     m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
-    e: &[[V::Scalar; C]; N],
-    labels: &[u16; N],
     max: bool,
 ) -> Acc<V::Scalar> {
     let mut acc = Acc::ONE;
-    let k = sweep::<V, C, K, N, H>(
-        m,
+    let k = sweep::<V, K, H>(
+        src,
         f,
-        e,
-        labels,
         |_, b| {
             if max {
                 maxvec(&m.psi, b)
@@ -100,22 +126,14 @@ pub fn tree_value<V: Lanes, const C: usize, const K: usize, const N: usize, cons
 
 /// The values of every forest (see [`tree_value`]).
 #[inline(always)]
-fn values<
-    V: Lanes,
-    const C: usize,
-    const K: usize,
-    const N: usize,
-    const H: usize,
-    const T: usize,
->(
+fn values<V: Lanes, const C: usize, const K: usize, const H: usize, const T: usize>(
     m: &TreeModel<V, C, K>,
-    e: &[[V::Scalar; C]; N],
-    labels: &[u16; N],
+    src: &dyn Factors<V, K>,
     max: bool,
 ) -> [Acc<V::Scalar>; T] {
     let mut accs = [Acc::ONE; T];
     for (a, f) in accs.iter_mut().zip(m.forests) {
-        *a = tree_value::<V, C, K, N, H>(m, f, e, labels, max);
+        *a = tree_value::<V, C, K, H>(m, src, f, max);
     }
     accs
 }
@@ -134,7 +152,9 @@ pub fn tree_log_likelihood<
     e: &[[V::Scalar; C]; N],
     labels: &[u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
-    let accs = values::<V, C, K, N, H, T>(m, e, labels, false);
+    let accs = with_factors(m, e, Some(labels), |src| {
+        values::<V, C, K, H, T>(m, src, false)
+    });
     match mix(&accs) {
         Some((l, _)) if l > V::Scalar::NEG_INFINITY => Ok(l),
         _ => Err(EvidenceError::ZeroLikelihood),
@@ -146,10 +166,10 @@ pub fn tree_log_likelihood<
 /// place's exponent; returns the product of the roots' sums and the sum of the
 /// exponents (the forest's value over `Z_t` is their product over `Z_t`).
 #[inline(never)]
-pub fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usize>(
+pub(crate) fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usize>(
     m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
-    e: &[[V::Scalar; C]; N],
     msgs: &mut [[V; K]; N],
     mut exps: Option<&mut [i32; N]>,
 ) -> (Acc<V::Scalar>, i32) {
@@ -157,7 +177,7 @@ pub fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usize>(
     let mut acc = Acc::ONE;
     for &[v, d] in f.post {
         let v = usize::from(v);
-        let (b, eb) = belief(m, f, e, msgs, v);
+        let (b, eb) = belief(src, f, msgs, v);
         let (out, ev) = if d == 0 {
             acc.mul(hsum(&b));
             (b, eb)
@@ -205,8 +225,8 @@ fn without<V: Lanes, const C: usize, const K: usize>(
 #[inline(always)]
 pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usize>(
     m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
-    e: &[[V::Scalar; C]; N],
     msgs: &[[V; K]; N],
     v: usize,
     parent_full: &[V; K],
@@ -215,7 +235,7 @@ pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usiz
         return [V::ZERO; K];
     };
     let down = matvec(&m.psi, &without::<V, C, K>(parent_full, mv, &m.pad));
-    let (mut b, _) = belief(m, f, e, msgs, v);
+    let (mut b, _) = belief(src, f, msgs, v);
     mul(&mut b, &down);
     norm_flush(&mut b);
     b
@@ -242,10 +262,16 @@ pub(crate) fn add_marginal<V: Lanes, const K: usize, const C: usize>(
 /// [`tree_upward`]): adds `w · P_t(Y_v | α)` to `out[v]` for every place, with a stack
 /// of `H` rows (one per depth).
 #[inline(never)]
-pub fn tree_downward<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
+pub(crate) fn tree_downward<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+>(
     m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
-    e: &[[V::Scalar; C]; N],
     msgs: &[[V; K]; N],
     w: V::Scalar,
     out: &mut [[V::Scalar; C]; N],
@@ -254,7 +280,7 @@ pub fn tree_downward<V: Lanes, const C: usize, const K: usize, const N: usize, c
     for &[v, d] in f.post.iter().rev() {
         let (v, d) = (usize::from(v), usize::from(d));
         let full = match d.checked_sub(1).and_then(|p| stack.get(p)) {
-            Some(pf) => full_below(m, f, e, msgs, v, pf),
+            Some(pf) => full_below(m, src, f, msgs, v, pf),
             None => msgs.get(v).copied().unwrap_or([V::ZERO; K]),
         };
         if let Some(s) = stack.get_mut(d) {
@@ -299,13 +325,37 @@ pub fn tree_marginals<
     e: &[[V::Scalar; C]; N],
     out: &mut [[V::Scalar; C]; N],
 ) -> Result<V::Scalar, EvidenceError> {
-    let one = V::Scalar::ONE;
     *out = [[V::Scalar::ZERO; C]; N];
+    let accs = with_factors(m, e, None, |src| {
+        marginals_from::<V, C, K, N, H, T>(m, src, out)
+    });
+    let Some((l, _)) = mix(&accs).filter(|(l, _)| *l > V::Scalar::NEG_INFINITY) else {
+        return Err(EvidenceError::ZeroLikelihood);
+    };
+    normalise_rows(out);
+    Ok(l)
+}
+
+/// The forests' passes of [`tree_marginals`]; returns the forests' values.
+#[inline(always)]
+fn marginals_from<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    out: &mut [[V::Scalar; C]; N],
+) -> [Acc<V::Scalar>; T] {
+    let one = V::Scalar::ONE;
     let mut msgs = [[V::ZERO; K]; N];
     let mut accs = [Acc::ONE; T];
     let mut top: Option<Acc<V::Scalar>> = None;
     for (a, f) in accs.iter_mut().zip(m.forests) {
-        let (acc, k) = tree_upward(m, f, e, &mut msgs, None);
+        let (acc, k) = tree_upward(m, src, f, &mut msgs, None);
         let acc = over_z(acc, k, f);
         *a = acc;
         if acc.is_zero() {
@@ -331,13 +381,9 @@ pub fn tree_marginals<
                 }
             }
         };
-        tree_downward::<V, C, K, N, H>(m, f, e, &msgs, w, out);
+        tree_downward::<V, C, K, N, H>(m, src, f, &msgs, w, out);
     }
-    let Some((l, _)) = mix(&accs).filter(|(l, _)| *l > V::Scalar::NEG_INFINITY) else {
-        return Err(EvidenceError::ZeroLikelihood);
-    };
-    normalise_rows(out);
-    Ok(l)
+    accs
 }
 
 /// Labels of the max-product labelling of forest `f`: a max-product sweep keeping
@@ -346,17 +392,14 @@ pub fn tree_marginals<
 #[inline(never)]
 fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
     m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
-    e: &[[V::Scalar; C]; N],
-    none: &[u16; N],
     labels: &mut [u16; N],
 ) {
     let mut arg = [[0u8; C]; N];
-    sweep::<V, C, K, N, H>(
-        m,
+    sweep::<V, K, H>(
+        src,
         f,
-        e,
-        none,
         |v, b| match arg.get_mut(v) {
             Some(a) => argvec(&m.psi, b, a),
             None => [V::ZERO; K],
@@ -384,8 +427,8 @@ fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H:
     }
 }
 
-/// Writes the most probable `(forest, labelling)` pair's labelling into `labels`
-/// (`none`: every place unlabelled) and returns its natural-log value `max_t max_y ln((1/T) P_t(y) Π_v α_v(y_v)^γ)` (ties:
+/// Writes the most probable `(forest, labelling)` pair's labelling into `labels` and
+/// returns its natural-log value `max_t max_y ln((1/T) P_t(y) Π_v α_v(y_v)^γ)` (ties:
 /// the first forest; within a forest the smallest class).
 pub fn tree_mpe<
     V: Lanes,
@@ -397,17 +440,19 @@ pub fn tree_mpe<
 >(
     m: &TreeModel<V, C, K>,
     e: &[[V::Scalar; C]; N],
-    none: &[u16; N],
     labels: &mut [u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
-    let accs = values::<V, C, K, N, H, T>(m, e, none, true);
-    let (Some(t), Some(f)) = (best(&accs), best(&accs).and_then(|t| m.forests.get(t))) else {
-        return Err(EvidenceError::ZeroLikelihood);
-    };
-    let v = accs.get(t).map_or(V::Scalar::NEG_INFINITY, |a| a.ln()) - V::Scalar::from_index(T).ln();
-    if !above(v, V::Scalar::NEG_INFINITY) {
-        return Err(EvidenceError::ZeroLikelihood);
-    }
-    mpe_labels::<V, C, K, N, H>(m, f, e, none, labels);
-    Ok(v)
+    with_factors(m, e, None, |src| {
+        let accs = values::<V, C, K, H, T>(m, src, true);
+        let (Some(t), Some(f)) = (best(&accs), best(&accs).and_then(|t| m.forests.get(t))) else {
+            return Err(EvidenceError::ZeroLikelihood);
+        };
+        let v =
+            accs.get(t).map_or(V::Scalar::NEG_INFINITY, |a| a.ln()) - V::Scalar::from_index(T).ln();
+        if !above(v, V::Scalar::NEG_INFINITY) {
+            return Err(EvidenceError::ZeroLikelihood);
+        }
+        mpe_labels::<V, C, K, N, H>(m, src, f, labels);
+        Ok(v)
+    })
 }

@@ -30,8 +30,10 @@
 //! `marginals` is one downward pass per forest (`O(T·N·C²)`).
 
 use super::super::{Acc, Lanes, Real, check_row, mix};
-use super::pass::{add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward};
-use super::{TreeModel, belief, hsum, matvec, norm};
+use super::pass::{
+    add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
+};
+use super::{Rows, TreeModel, belief, hsum, matvec, norm};
 use crate::EvidenceError;
 
 /// Largest deficit of a fused class (see the module docs).
@@ -155,6 +157,11 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
 
     /// Every forest's stored upward pass from the current rows.
     fn refresh(&mut self, m: &TreeModel<V, C, K>) {
+        let rows = Rows {
+            m,
+            e: &self.rows,
+            labels: None,
+        };
         for (((f, msgs), exps), tot) in m
             .forests
             .iter()
@@ -162,13 +169,18 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
             .zip(self.exp.iter_mut())
             .zip(self.total.iter_mut())
         {
-            *tot = tree_upward(m, f, &self.rows, msgs, Some(exps)).1;
+            *tot = tree_upward(m, &rows, f, msgs, Some(exps)).1;
         }
         self.ready = true;
     }
 
     /// Recomputes the path from `place` to its root in every forest.
     fn update(&mut self, m: &TreeModel<V, C, K>, place: usize) {
+        let rows = Rows {
+            m,
+            e: &self.rows,
+            labels: None,
+        };
         for (((f, msgs), exps), tot) in m
             .forests
             .iter()
@@ -178,7 +190,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         {
             let mut a = place;
             for _ in 0..N {
-                let (b, eb) = belief(m, f, &self.rows, msgs, a);
+                let (b, eb) = belief(&rows, f, msgs, a);
                 let parent = f.parent_of(a);
                 let root = usize::from(parent) >= N;
                 let (out, ev) = if root {
@@ -363,9 +375,11 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     ) -> Result<V::Scalar, EvidenceError> {
         let (l, w) = self.mixed(m)?;
         *out = [[V::Scalar::ZERO; C]; N];
-        for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
-            tree_downward::<V, C, K, N, H>(m, f, &self.rows, msgs, wt, out);
-        }
+        with_factors(m, &self.rows, None, |src| {
+            for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
+                tree_downward::<V, C, K, N, H>(m, src, f, msgs, wt, out);
+            }
+        });
         normalise_rows(out);
         Ok(l)
     }
@@ -382,6 +396,11 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         place_id(ids, place)?;
         let (_, w) = self.mixed(m)?;
         *out = [V::Scalar::ZERO; C];
+        let rows = Rows {
+            m,
+            e: &self.rows,
+            labels: None,
+        };
         for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
             // The path from the place up to its root.
             let mut path = [0u16; H];
@@ -401,7 +420,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
             };
             let mut full = *full;
             for &c in steps {
-                full = full_below(m, f, &self.rows, msgs, usize::from(c), &full);
+                full = full_below(m, &rows, f, msgs, usize::from(c), &full);
             }
             add_marginal(out, &full, wt);
         }
