@@ -175,10 +175,7 @@ macro_rules! lanes_impl {
 /// `v` with lanes `i` and `i ^ w` exchanged (a shuffle: one step of a pairwise
 /// reduction).
 #[inline(always)]
-fn swap_lanes<V: Copy, T: Copy + Default, const L: usize>(v: V, w: usize) -> V
-where
-    V: SwapLanes<T, L>,
-{
+fn swap_lanes<V: SwapLanes<T, L>, T: Copy + Default, const L: usize>(v: V, w: usize) -> V {
     let a = v.array();
     let mut p = [T::default(); L];
     for (i, o) in p.iter_mut().enumerate() {
