@@ -88,7 +88,7 @@ for map in demo_floor saarbrucken_seq2_night1 demo_floor_trees saarbrucken_seq2_
                 }
                 $1 == "map" {
                     on = ($2 == map)
-                    if (on) for (i = 3; i <= NF; i++) if ($i ~ /^buffers=/) buffers = substr($i, 9) + 0
+                    if (on) for (q = 3; q <= NF; q++) if ($q ~ /^buffers=/) buffers = substr($q, 9) + 0
                 }
                 on && $1 == "call" {
                     split($3, i, "="); split($4, s, "=")

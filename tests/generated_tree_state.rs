@@ -12,27 +12,16 @@
 //!   state's marginals and log-likelihood agree with `TreeInstance` on the reference
 //!   rows and with the stateless functions on the state's rows.
 
+#[allow(dead_code)]
+#[path = "../firmware/src/evidence.rs"]
+mod evidence;
+
+use evidence::SplitMix64;
 use graphspn::codegen::{AnyInputs, Builder};
 use graphspn::treemix::TreeInstance;
 use graphspn_generated::demo_floor_trees::{
     self as m, Evidence, Marginals, NUM_CLASSES, NUM_PLACES, State,
 };
-
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in `(0, 1]`, exactly representable in `f32`.
-    fn unit(&mut self) -> f32 {
-        ((self.next() >> 40) + 1) as f32 / 16_777_216.0
-    }
-}
 
 /// The module's reference: `TreeInstance` with the inputs of `generated/build.rs`.
 fn reference() -> TreeInstance {
@@ -155,16 +144,16 @@ fn a_class_outvoted_for_hundreds_of_observations_comes_back() {
 
 #[test]
 fn a_million_random_observations_stay_exact() {
-    let mut rng = SplitMix(23);
+    let mut rng = SplitMix64(23);
     let mut s = State::new();
     let mut exact = LogRows::new();
     let mut inst = reference();
     let mut row = [0.0f32; NUM_CLASSES];
     let total = 1_000_000;
     for i in 1..=total {
-        let p = (rng.next() % NUM_PLACES as u64) as usize;
+        let p = (rng.next_u64() % NUM_PLACES as u64) as usize;
         for x in row.iter_mut() {
-            *x = rng.unit();
+            *x = rng.unit_f32();
         }
         s.observe(p, &row).unwrap();
         exact.observe(p, &row);

@@ -14,7 +14,7 @@ mod common;
 use std::path::PathBuf;
 
 use common::trees::{TreeCase, check_tree_case};
-use common::{Variant, env_usize, probe_labels, stride};
+use common::{Variant, env_usize, in_process_answers};
 use graphspn::codegen::Builder;
 use graphspn::map::cold;
 use graphspn::treemix::{SpanningTrees, TreeMixture};
@@ -72,29 +72,7 @@ fn demo_floor_module_matches_tree_instance_and_interpreter() {
     let ids: Vec<u32> = case.map.places().map(|p| p.id).collect();
     assert_eq!(ids, floor::PLACE_IDS);
     let evs = case.evidence();
-    let (n, c) = (floor::NUM_PLACES, floor::NUM_CLASSES);
-    let mut vals = Vec::with_capacity(evs.len() * stride(n, c));
-    let mut e: floor::Evidence = [[0.0; floor::NUM_CLASSES]; floor::NUM_PLACES];
-    let mut marg = e;
-    let mut lab = [0u16; floor::NUM_PLACES];
-    let mut probe = [floor::UNKNOWN; floor::NUM_PLACES];
-    for (v, ev) in evs.iter().enumerate() {
-        for (row, src) in e.iter_mut().zip(ev) {
-            for (x, &s) in row.iter_mut().zip(src) {
-                *x = s as f32;
-            }
-        }
-        for (l, p) in probe.iter_mut().zip(probe_labels(ev, v)) {
-            *l = p.map_or(floor::UNKNOWN, |k| k as u16);
-        }
-        let nan = f64::NAN;
-        vals.push(floor::log_likelihood(&e).map_or(nan, f64::from));
-        vals.push(floor::mpe(&e, &mut lab).map_or(nan, f64::from));
-        vals.push(floor::labelled_log_likelihood(&probe, &e).map_or(nan, f64::from));
-        let _ = floor::marginals(&e, &mut marg);
-        vals.extend(lab.iter().map(|&l| f64::from(l)));
-        vals.extend(marg.iter().flatten().map(|&x| f64::from(x)));
-    }
+    let vals = in_process_answers::<floor::Map>(&evs);
     check_tree_case(&case, &evs, &[vals]);
     eprintln!("demo_floor_trees: {} vectors (seed 1) agree", evs.len());
 }

@@ -462,6 +462,14 @@ fn tree_reference(name: &str, rows: &[Vec<f32>]) -> TreeInstance {
     inst
 }
 
+/// The value call `i` of map `m` returned (panics naming the call on an error).
+fn call_value(target: &str, m: &MapReport, i: usize) -> f64 {
+    let call = &m.calls[i];
+    f64::from(f32::from_bits(*call.value.as_ref().unwrap_or_else(|e| {
+        panic!("{target} {} {}: error {e}", m.name, call.name)
+    })))
+}
+
 /// [`check_map`] for a tree-mixture module: every call against `TreeInstance` (the
 /// interpreter's instance SPN is checked against it in `generated_trees.rs`).
 fn check_tree_map(target: &str, m: &MapReport, index: u64) {
@@ -470,15 +478,7 @@ fn check_tree_map(target: &str, m: &MapReport, index: u64) {
     let rows: Vec<Vec<f32>> = rows.chunks(c).map(<[f32]>::to_vec).collect();
     let inst = tree_reference(&m.name, &rows);
     let ctx = |what: &str| format!("{target} {} {what}", m.name);
-    let value = |i: usize| -> f64 {
-        let call = &m.calls[i];
-        f64::from(f32::from_bits(
-            *call
-                .value
-                .as_ref()
-                .unwrap_or_else(|e| panic!("{}: error {e}", ctx(&call.name))),
-        ))
-    };
+    let value = |i: usize| call_value(target, m, i);
     let want = inst.marginals().unwrap();
     for i in [0, 1] {
         let w = want.mixed.log_likelihood;
@@ -546,15 +546,7 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     );
     let free = vec![None; n];
     let ctx = |what: &str| format!("{target} {} {what}", m.name);
-    let value = |i: usize| -> f64 {
-        let call = &m.calls[i];
-        f64::from(f32::from_bits(
-            *call
-                .value
-                .as_ref()
-                .unwrap_or_else(|e| panic!("{}: error {e}", ctx(&call.name))),
-        ))
-    };
+    let value = |i: usize| call_value(target, m, i);
     let names: Vec<&str> = m.calls.iter().map(|c| c.name.as_str()).collect();
     assert_eq!(
         names,

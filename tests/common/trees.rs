@@ -12,7 +12,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use super::{Variant, build_crate, evidence, probe_labels, stride};
+use super::{Prepared, Variant, evidence, probe_labels, run_modules, stride};
 
 /// One map's tree mixture to compile and test (see [`super::Case`]).
 pub struct TreeCase {
@@ -100,56 +100,21 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
 /// Generates, builds and runs every variant of every case in one crate, then checks
 /// each against `TreeInstance` and the interpreter ([`check_tree_case`]).
 pub fn tree_differential(crate_name: &str, cases: &[TreeCase]) {
-    let dir = tempfile::tempdir().unwrap();
-    let mut modules = vec![];
-    let mut inputs = vec![];
-    for case in cases {
-        let evs = case.evidence();
-        let mut bytes = (case.vectors as u64).to_le_bytes().to_vec();
-        for (v, e) in evs.iter().enumerate() {
-            for x in e.iter().flatten() {
-                bytes.extend_from_slice(&x.to_le_bytes());
-            }
-            for l in probe_labels(e, v) {
-                let l = l.map_or(f64::from(u16::MAX), f64::from);
-                bytes.extend_from_slice(&l.to_le_bytes());
-            }
-        }
-        for variant in &case.variants {
-            let name = case.module(variant);
-            std::fs::write(dir.path().join(format!("{name}.ev")), &bytes).unwrap();
-            modules.push((name, case.source(variant)));
-        }
-        inputs.push(evs);
-    }
-    let bin = build_crate(dir.path(), crate_name, &modules);
-    let run = std::process::Command::new(&bin)
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    eprint!(
-        "generated code, seconds for all queries:\n{}",
-        String::from_utf8_lossy(&run.stdout)
-    );
-    for (case, evs) in cases.iter().zip(&inputs) {
+    let prepared: Vec<Prepared> = cases
+        .iter()
+        .map(|case| {
+            let modules = case
+                .variants
+                .iter()
+                .map(|v| (case.module(v), case.source(v)))
+                .collect();
+            (modules, case.evidence())
+        })
+        .collect();
+    let results = run_modules(crate_name, &prepared);
+    for ((case, (_, evs)), vals) in cases.iter().zip(&prepared).zip(&results) {
         let start = std::time::Instant::now();
-        let vals: Vec<Vec<f64>> = case
-            .variants
-            .iter()
-            .map(|v| {
-                std::fs::read(dir.path().join(format!("{}.out", case.module(v))))
-                    .unwrap()
-                    .chunks_exact(8)
-                    .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
-                    .collect()
-            })
-            .collect();
-        check_tree_case(case, evs, &vals);
+        check_tree_case(case, evs, vals);
         eprintln!(
             "{} ({} variants): {} places, {} trees, {} vectors (seed {}) agree with TreeInstance and the interpreter ({:.1} s)",
             case.name,

@@ -20,7 +20,7 @@ use crate::decompose::{
 };
 use crate::family::AnyModel;
 use crate::learn::{Model, ModelFileError};
-use crate::map::{MapError, TopoMap, cold};
+use crate::map::{ClassSet, MapError, TopoMap, cold};
 use crate::treemix::{SpanningTrees, TreeMixError, TreeMixture};
 
 /// The first line of every generated file starts with this text; [`is_generated_file`]
@@ -458,18 +458,24 @@ impl Builder {
         self
     }
 
+    /// The model's and the map's classes must be the same, in the same order.
+    fn check_classes(&self, model: &ClassSet, map: &TopoMap) -> Result<(), BuildError> {
+        if model.names() == map.classes.names() {
+            return Ok(());
+        }
+        Err(BuildError::ClassesDiffer {
+            model: self.model.clone(),
+            model_classes: model.names().to_vec(),
+            map: self.map.clone(),
+            map_classes: map.classes.names().to_vec(),
+        })
+    }
+
     /// Loads and checks the model, the map and the decompositions.
     pub fn load(&self) -> Result<Inputs, BuildError> {
         let model = load_model(&self.model)?;
         let map = load_map(&self.map)?;
-        if model.classes.names() != map.classes.names() {
-            return Err(BuildError::ClassesDiffer {
-                model: self.model.clone(),
-                model_classes: model.classes.names().to_vec(),
-                map: self.map.clone(),
-                map_classes: map.classes.names().to_vec(),
-            });
-        }
+        self.check_classes(&model.classes, &map)?;
         let decompositions =
             match &self.decompositions {
                 DecSource::File(path) => load_decompositions(path, &map, &model)?,
@@ -496,14 +502,7 @@ impl Builder {
             AnyModel::TreeMixture(m) => m,
         };
         let map = load_map(&self.map)?;
-        if model.classes.names() != map.classes.names() {
-            return Err(BuildError::ClassesDiffer {
-                model: self.model.clone(),
-                model_classes: model.classes.names().to_vec(),
-                map: self.map.clone(),
-                map_classes: map.classes.names().to_vec(),
-            });
-        }
+        self.check_classes(&model.classes, &map)?;
         let seed = match &self.decompositions {
             DecSource::Seeded(p) => p.seed,
             DecSource::File(_) | DecSource::Given(_) => {

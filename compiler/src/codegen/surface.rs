@@ -201,6 +201,24 @@ pub(super) fn checked(
     }
 }
 
+/// The validating `labelled_log_likelihood` (evidence and labels checked), calling
+/// `labelled_log_likelihood_unchecked`.
+pub(super) fn checked_labelled(l: &Lit) -> TokenStream {
+    let rt = rt();
+    checked(
+        l,
+        &[
+            " Natural log of the likelihood of the evidence with every labelled place restricted",
+            " to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are",
+            " rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.",
+        ],
+        "labelled_log_likelihood",
+        quote!(labels: &Labels, e: &Evidence),
+        quote!(labels, e),
+        quote!(#rt::check_labels(labels, NUM_CLASSES)?;),
+    )
+}
+
 /// `Map`, this map as a `graphspn_runtime::CompiledMap`.
 pub(super) fn compiled_map_impl(l: &Lit) -> TokenStream {
     let (rt, t) = (rt(), l.ty());

@@ -6,7 +6,7 @@ use proc_macro2::TokenStream;
 use quote::quote;
 
 use super::super::emit::rt;
-use super::super::surface::checked;
+use super::super::surface::{checked, checked_labelled};
 use super::plan::Context;
 
 /// The driver's generic arguments: lane vector, classes, row vectors, places, stack
@@ -32,18 +32,7 @@ pub(super) fn stateless_api(cx: &Context) -> TokenStream {
         quote!(e),
         TokenStream::new(),
     );
-    let labelled = checked(
-        &cx.l,
-        &[
-            " Natural log of the likelihood of the evidence with every labelled place restricted",
-            " to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are",
-            " rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.",
-        ],
-        "labelled_log_likelihood",
-        quote!(labels: &Labels, e: &Evidence),
-        quote!(labels, e),
-        quote!(#rt::check_labels(labels, NUM_CLASSES)?;),
-    );
+    let labelled = checked_labelled(&cx.l);
     let marginals = checked(
         &cx.l,
         &[

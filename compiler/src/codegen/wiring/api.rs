@@ -5,7 +5,7 @@ use proc_macro2::TokenStream;
 use quote::quote;
 
 use super::super::emit::rt;
-use super::super::surface::checked;
+use super::super::surface::{checked, checked_labelled};
 use super::{Context, Tpl};
 
 /// One driver call per template, `call(table)` with the template's `static` table.
@@ -62,18 +62,7 @@ fn likelihood_api(cx: &Context) -> TokenStream {
         quote!(e),
         TokenStream::new(),
     );
-    let labelled = checked(
-        &cx.l,
-        &[
-            " Natural log of the likelihood of the evidence with every labelled place restricted",
-            " to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are",
-            " rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.",
-        ],
-        "labelled_log_likelihood",
-        quote!(labels: &Labels, e: &Evidence),
-        quote!(labels, e),
-        quote!(#rt::check_labels(labels, NUM_CLASSES)?;),
-    );
+    let labelled = checked_labelled(&cx.l);
     quote! {
         /// Natural log of the likelihood `S(α)` of the evidence, without validating it.
         /// Invalid evidence gives unspecified numbers (never a panic).

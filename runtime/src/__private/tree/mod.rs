@@ -211,6 +211,26 @@ fn each_class<V: Lanes, const K: usize, const C: usize>(
     }
 }
 
+/// `m(a) = ⊕_j ψ(a, j) b(j)` column by column, with `⊕` given by `add(acc, ψ(·, j),
+/// b(j))` per lane vector.
+#[inline(always)]
+fn columns<V: Lanes, const C: usize, const K: usize>(
+    psi: &[[V; K]; C],
+    b: &[V; K],
+    add: impl Fn(V, V, V) -> V,
+) -> [V; K] {
+    let mut m = [V::ZERO; K];
+    each_class::<V, K, C>(b, |j, x| {
+        if let Some(col) = psi.get(j) {
+            let s = V::splat(x);
+            for (o, &c) in m.iter_mut().zip(col) {
+                *o = add(*o, c, s);
+            }
+        }
+    });
+    m
+}
+
 /// `ψ·b`: `m(a) = Σ_j ψ(a, j) b(j)`, column by column (one multiply-add per class pair;
 /// `V = f32` on microcontrollers: a multiply and an add, never fused).
 #[inline(always)]
@@ -218,16 +238,7 @@ pub(crate) fn matvec<V: Lanes, const C: usize, const K: usize>(
     psi: &[[V; K]; C],
     b: &[V; K],
 ) -> [V; K] {
-    let mut m = [V::ZERO; K];
-    each_class::<V, K, C>(b, |j, x| {
-        if let Some(col) = psi.get(j) {
-            let s = V::splat(x);
-            for (o, &c) in m.iter_mut().zip(col) {
-                *o = c.mul_add(s, *o);
-            }
-        }
-    });
-    m
+    columns(psi, b, |o, c, s| c.mul_add(s, o))
 }
 
 /// Max-product `ψ·b`: `m(a) = max_j ψ(a, j) b(j)`.
@@ -236,16 +247,7 @@ pub(crate) fn maxvec<V: Lanes, const C: usize, const K: usize>(
     psi: &[[V; K]; C],
     b: &[V; K],
 ) -> [V; K] {
-    let mut m = [V::ZERO; K];
-    each_class::<V, K, C>(b, |j, x| {
-        if let Some(col) = psi.get(j) {
-            let s = V::splat(x);
-            for (o, &c) in m.iter_mut().zip(col) {
-                *o = o.max(c * s);
-            }
-        }
-    });
-    m
+    columns(psi, b, |o, c, s| o.max(c * s))
 }
 
 /// [`maxvec`] and its arg-max: `arg[a]` is the smallest `j` attaining `m(a)`.

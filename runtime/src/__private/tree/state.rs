@@ -33,7 +33,7 @@ use super::super::{Acc, Lanes, Real, check_row, mix};
 use super::pass::{
     add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
 };
-use super::{Rows, TreeModel, belief, hsum, matvec, norm};
+use super::{Forest, Rows, TreeModel, belief, hsum, matvec, norm};
 use crate::EvidenceError;
 
 /// Largest deficit of a fused class (see the module docs).
@@ -155,8 +155,18 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         }
     }
 
-    /// Every forest's stored upward pass from the current rows.
-    fn refresh(&mut self, m: &TreeModel<V, C, K>) {
+    /// Calls `each(rows, forest, messages, exponents, total)` for every forest.
+    fn each_forest(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        mut each: impl FnMut(
+            &Rows<'_, V, C, K, N>,
+            &Forest<V::Scalar>,
+            &mut [[V; K]; N],
+            &mut [i32; N],
+            &mut i32,
+        ),
+    ) {
         let rows = Rows {
             m,
             e: &self.rows,
@@ -169,28 +179,24 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
             .zip(self.exp.iter_mut())
             .zip(self.total.iter_mut())
         {
-            *tot = tree_upward(m, &rows, f, msgs, Some(exps)).1;
+            each(&rows, f, msgs, exps, tot);
         }
+    }
+
+    /// Every forest's stored upward pass from the current rows.
+    fn refresh(&mut self, m: &TreeModel<V, C, K>) {
+        self.each_forest(m, |rows, f, msgs, exps, tot| {
+            *tot = tree_upward(m, rows, f, msgs, Some(exps)).1;
+        });
         self.ready = true;
     }
 
     /// Recomputes the path from `place` to its root in every forest.
     fn update(&mut self, m: &TreeModel<V, C, K>, place: usize) {
-        let rows = Rows {
-            m,
-            e: &self.rows,
-            labels: None,
-        };
-        for (((f, msgs), exps), tot) in m
-            .forests
-            .iter()
-            .zip(self.msg.iter_mut())
-            .zip(self.exp.iter_mut())
-            .zip(self.total.iter_mut())
-        {
+        self.each_forest(m, |rows, f, msgs, exps, tot| {
             let mut a = place;
             for _ in 0..N {
-                let (b, eb) = belief(&rows, f, msgs, a);
+                let (b, eb) = belief(rows, f, msgs, a);
                 let parent = f.parent_of(a);
                 let root = usize::from(parent) >= N;
                 let (out, ev) = if root {
@@ -210,7 +216,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
                 }
                 a = usize::from(parent);
             }
-        }
+        });
     }
 
     /// Stores the row and exact form of `place` and updates the forests.
