@@ -303,7 +303,7 @@ fn the_validated_graphspn_options_are_on_the_command_line() {
         serde_json::from_str(&text).unwrap()
     };
     let (avg, post) = (infer("average"), infer("posterior"));
-    assert_eq!(avg["mixing"], "average");
+    assert_eq!(avg["model"]["mixing"], "average");
     assert_eq!(avg["log_likelihood"], post["log_likelihood"]);
     let rows = |v: &serde_json::Value| -> Vec<Vec<f64>> {
         v["places"]
@@ -334,5 +334,93 @@ fn the_validated_graphspn_options_are_on_the_command_line() {
         std::fs::read_to_string(&decs)
             .unwrap()
             .contains("\"components\"")
+    );
+}
+
+/// A tree mixture through the command line: train it, infer with both mixings, the
+/// MPE labelling, another tree count, and draw one of its spanning trees.
+#[test]
+fn a_tree_mixture_trains_infers_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("trees.json");
+    run_ok(
+        bin()
+            .args([
+                "train",
+                "--family",
+                "tree-mixture",
+                "--buildings",
+                "Freiburg",
+            ])
+            .args([
+                "--coupling",
+                "0.8",
+                "--evidence-exponent",
+                "3",
+                "--trees",
+                "3",
+            ])
+            .args(["--mixing", "posterior", "--out"])
+            .arg(&model),
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["family"], "tree_mixture");
+    assert_eq!(m["trees"], 3);
+    assert_eq!(m["evidence_exponent"], 3);
+    assert_eq!(m["settings"]["potentials"]["coupling"], 0.8);
+    let ev = dir.path().join("ev.json");
+    std::fs::write(
+        &ev,
+        r#"{"format": 1, "evidence": {"1": [0.1, 0.9, 0, 0, 0, 0, 0, 0, 0, 0], "7": [1, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2]}}"#,
+    )
+    .unwrap();
+    let infer = |extra: &[&str]| -> serde_json::Value {
+        let text = run_ok(
+            bin()
+                .args(["infer", "--model"])
+                .arg(&model)
+                .arg("--map")
+                .arg(demo("floor.json"))
+                .arg("--evidence")
+                .arg(&ev)
+                .args(extra),
+        );
+        serde_json::from_str(&text).unwrap()
+    };
+    let post = infer(&["--mpe"]);
+    let avg = infer(&["--mixing", "average"]);
+    assert_eq!(post["model"]["family"], "tree_mixture");
+    assert_eq!(post["model"]["trees"], 3);
+    assert_eq!(post["model"]["mixing"], "posterior");
+    assert_eq!(avg["model"]["mixing"], "average");
+    assert_eq!(post["model"]["edges_covered"], post["model"]["edges"]);
+    assert_eq!(post["log_likelihood"], avg["log_likelihood"]);
+    assert!(post["log_likelihood"].as_f64().unwrap() < 0.0);
+    for v in [&post, &avg] {
+        for p in v["places"].as_array().unwrap() {
+            let row: Vec<f64> = serde_json::from_value(p["probs"].clone()).unwrap();
+            assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        }
+    }
+    let mpe = &post["mpe"];
+    assert!(mpe["log_probability"].as_f64().unwrap() >= mpe["log_max_product"].as_f64().unwrap());
+    assert_eq!(infer(&["--trees", "1"])["model"]["trees"], 1);
+    let svg = dir.path().join("t.svg");
+    run_ok(
+        bin()
+            .args(["render", "--map"])
+            .arg(demo("floor.json"))
+            .arg("--model")
+            .arg(&model)
+            .args(["--tree", "3", "--out"])
+            .arg(&svg),
+    );
+    let text = std::fs::read_to_string(&svg).unwrap();
+    roxmltree::Document::parse(&text).unwrap();
+    assert_eq!(
+        text.matches("tree-edge").count(),
+        79,
+        "a spanning tree of 80 places"
     );
 }

@@ -52,7 +52,7 @@ pub mod trees;
 pub use exact::{TreeInstance, TreeMarginals};
 #[cfg(feature = "host")]
 pub use fit::{FitGraph, FitOptions, FitReport, fit_potentials};
-pub use model::TreeMixture;
+pub use model::{MAX_TREES, TreeMixture};
 #[cfg(feature = "host")]
 pub use spn::instance_spn;
 #[cfg(feature = "host")]
