@@ -4,6 +4,7 @@
 //! its former name.
 
 pub use crate::noise as evidence;
+pub mod ceiling;
 pub mod error;
 pub mod models;
 pub mod novelty;

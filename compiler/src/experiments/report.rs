@@ -258,6 +258,67 @@ fn paired_tables(rep: &Reproduction, e: Experiment) -> String {
     s
 }
 
+/// The placeholder ceiling ([`super::ceiling`]) beside the models' placeholder accuracy
+/// at the lowest and highest noise level.
+fn ceiling_section(rep: &Reproduction) -> String {
+    if rep.ceiling.is_empty() {
+        return String::new();
+    }
+    let levels = levels_of(rep);
+    let (lo, hi) = (levels[0], levels[levels.len() - 1]);
+    let mut s = format!(
+        "\nHow far can placeholders go? An oracle that knows the true class of every \
+         explored place and labels each placeholder with the class most often found \
+         there in the training buildings, given the classes of its explored neighbours \
+         (one hop) or also their neighbours' (two hops) — mean over maps, in %, beside \
+         the models at NL{lo} and NL{hi}:\n\n\
+         | Test building | placeholders | oracle, one hop | oracle, two hops | {} NL{lo} | {} NL{lo} | better tuned MRF NL{lo} | {} NL{hi} | better tuned MRF NL{hi} |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
+        MODELS[TREES], MODELS[GRAPHSPN], MODELS[TREES]
+    );
+    let mean = |b: Option<&str>, l: u8, k: usize| {
+        let v = per_map(rep, b, Experiment::Placeholders, l, |g| g.accuracy[k]);
+        100.0 * v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    let best = |b: Option<&str>, l: u8| {
+        let k = best_baseline(rep, b, Experiment::Placeholders, l);
+        mean(b, l, k)
+    };
+    for c in &rep.ceiling {
+        let b = Some(c.building.as_str());
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            c.building,
+            c.placeholders,
+            100.0 * c.one_hop,
+            100.0 * c.two_hop,
+            mean(b, lo, TREES),
+            mean(b, lo, GRAPHSPN),
+            best(b, lo),
+            mean(b, hi, TREES),
+            best(b, hi),
+        );
+    }
+    if rep.ceiling.len() > 1 {
+        let maps: Vec<&(String, f64, f64)> = rep.ceiling.iter().flat_map(|c| &c.per_map).collect();
+        let k = maps.len().max(1) as f64;
+        let _ = writeln!(
+            s,
+            "| **all** | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            rep.ceiling.iter().map(|c| c.placeholders).sum::<usize>(),
+            100.0 * maps.iter().map(|m| m.1).sum::<f64>() / k,
+            100.0 * maps.iter().map(|m| m.2).sum::<f64>() / k,
+            mean(None, lo, TREES),
+            mean(None, lo, GRAPHSPN),
+            best(None, lo),
+            mean(None, hi, TREES),
+            best(None, hi),
+        );
+    }
+    s
+}
+
 fn bp_convergence(rep: &Reproduction) -> String {
     let n = rep.graphs.len().max(1) as f64;
     let parts: Vec<String> = MRF_MODELS
@@ -588,6 +649,7 @@ fn report_markdown(
     );
     s.push_str(&accuracy_table(rep, Experiment::Placeholders, true));
     s.push_str(&paired_tables(rep, Experiment::Placeholders));
+    s.push_str(&ceiling_section(rep));
     if !rep.auc.is_empty() {
         let count = |set: NoveltySet, novel: bool| {
             rep.novelty

@@ -22,6 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::ceiling::{CeilingRow, placeholder_ceiling};
 pub use super::error::ReproduceError;
 use super::evidence::{
     LevelStats, NoiseLevel, SimulatedEvidence, WrongClassDraw, derive_seed, level_statistics,
@@ -200,6 +201,10 @@ pub struct Reproduction {
     /// non-novel) labelling pairs of the same map that the model ranks correctly
     /// (ties ½), averaged over maps.
     pub within_map: Vec<(NoveltySet, Scores<f64>)>,
+    /// Per test building: how well an oracle knowing every explored place's true class
+    /// labels the placeholders from their neighbourhood ([`super::ceiling`]).
+    #[serde(default)]
+    pub ceiling: Vec<CeilingRow>,
     /// Table 1 statistics of the evidence simulated on the test maps:
     /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
     pub table1: Vec<(u8, f64, f64, f64, f64)>,
@@ -809,8 +814,21 @@ pub fn run(
             ));
         }
     }
+    let ceiling = setups
+        .iter()
+        .map(|s| {
+            let train: Vec<TopoMap> = s
+                .info
+                .trained_on
+                .iter()
+                .flat_map(|k| all[k].iter().cloned())
+                .collect();
+            placeholder_ceiling(&s.building, &train, &s.maps)
+        })
+        .collect();
     let rep = Reproduction {
         seed: cfg.seed,
+        ceiling,
         paper_noise: cfg.wrong_draw == WrongClassDraw::AnyClass,
         validation,
         buildings: setups.iter().map(|s| s.info.clone()).collect(),
