@@ -46,7 +46,13 @@ fn one_hop(m: &TopoMap, v: usize) -> Vec<ClassId> {
     explored_classes(m, v, usize::MAX).into_iter().collect()
 }
 
-fn two_hops(m: &TopoMap, v: usize) -> Vec<(ClassId, Vec<ClassId>)> {
+/// A two-hop context: each explored neighbour's class and its other neighbours' classes.
+type TwoHops = Vec<(ClassId, Vec<ClassId>)>;
+
+/// Placeholder classes counted per context.
+type Counts<K> = BTreeMap<K, BTreeMap<ClassId, usize>>;
+
+fn two_hops(m: &TopoMap, v: usize) -> TwoHops {
     let set: BTreeSet<(ClassId, Vec<ClassId>)> = m
         .neighbors(v)
         .into_iter()
@@ -74,8 +80,8 @@ fn argmax(t: &BTreeMap<ClassId, usize>) -> Option<ClassId> {
 /// The oracle's accuracy on the placeholders of `test` with statistics from `train`
 /// (annotated places only; a placeholder without a class is not scored).
 pub fn placeholder_ceiling(building: &str, train: &[TopoMap], test: &[TopoMap]) -> CeilingRow {
-    let mut t1: BTreeMap<Vec<ClassId>, BTreeMap<ClassId, usize>> = BTreeMap::new();
-    let mut t2: BTreeMap<Vec<(ClassId, Vec<ClassId>)>, BTreeMap<ClassId, usize>> = BTreeMap::new();
+    let mut t1: Counts<Vec<ClassId>> = BTreeMap::new();
+    let mut t2: Counts<TwoHops> = BTreeMap::new();
     let mut prior: BTreeMap<ClassId, usize> = BTreeMap::new();
     for m in train {
         for v in 0..m.num_places() {
