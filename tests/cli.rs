@@ -424,3 +424,78 @@ fn a_tree_mixture_trains_infers_and_renders() {
         "a spanning tree of 80 places"
     );
 }
+
+/// `evaluate --settings`: a held-out building (a COLD building's maps copied under
+/// another name) tested with the settings of a saved validation on the other two
+/// buildings, with no validation run; `--settings-of` picks the entry.
+#[test]
+fn evaluate_reuses_a_saved_validation() {
+    use graphspn_compiler::experiments::settings::{GraphSpnSetting, ModelSettings, MrfSetting};
+    use graphspn_compiler::mrf::BpOptions;
+    use graphspn_compiler::treemix::TreeTraining;
+    let dir = tempfile::tempdir().unwrap();
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/cold-topomaps");
+    let held = dir.path().join("stockholm_heldout");
+    std::fs::create_dir(&held).unwrap();
+    for seq in ["floor4_cloudy_a1", "floor4_cloudy_b"] {
+        let to = held.join(seq);
+        std::fs::create_dir(&to).unwrap();
+        for f in ["nodes.dat", "rooms.dat"] {
+            std::fs::copy(data.join("Stockholm").join(seq).join(f), to.join(f)).unwrap();
+        }
+    }
+    let trees = TreeTraining {
+        trees: 2,
+        ..TreeTraining::default()
+    };
+    let chosen = ModelSettings {
+        graphspn: GraphSpnSetting::paper(),
+        mrf2: MrfSetting::paper(BpOptions::default()),
+        mrf3: MrfSetting::paper(BpOptions::default()),
+        trees,
+    };
+    let settings = dir.path().join("validation.json");
+    let file = serde_json::json!({"settings": {"Stockholm": chosen, "Freiburg": chosen}});
+    std::fs::write(&settings, file.to_string()).unwrap();
+    let eval = |extra: &[&str], out: &str| {
+        bin()
+            .args(["evaluate", "--maps"])
+            .arg(&held)
+            .arg("--train")
+            .arg(data.join("Freiburg"))
+            .arg("--train")
+            .arg(data.join("Saarbrucken"))
+            .arg("--settings")
+            .arg(&settings)
+            .args(["--levels", "2", "--rounds", "1", "--no-novelty", "--out"])
+            .arg(dir.path().join(out))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let refused = eval(&[], "e0");
+    assert!(!refused.status.success());
+    let msg = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        msg.contains("--settings-of") && msg.contains("Freiburg, Stockholm"),
+        "{msg}"
+    );
+    let ok = eval(&["--settings-of", "Stockholm"], "e1");
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("e1/results.json")).unwrap())
+            .unwrap();
+    assert!(
+        json["validation"].as_array().unwrap().is_empty(),
+        "no validation run"
+    );
+    assert_eq!(json["buildings"][0]["settings"]["trees"]["trees"], 2);
+    for g in json["graphs"].as_array().unwrap() {
+        assert_eq!(g["building"], "stockholm_heldout");
+        assert!(g["accuracy"]["Tree mixture"].as_f64().unwrap() > 0.5);
+    }
+}

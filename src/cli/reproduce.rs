@@ -210,7 +210,7 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
 }
 
 /// Reads the per-building settings of a validation.json.
-fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSettings>> {
+pub fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSettings>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let v: serde_json::Value =
