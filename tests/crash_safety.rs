@@ -274,6 +274,12 @@ fn reproduce_killed_at_random_leaves_the_previous_or_the_complete_new_folder() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     run_ok(&mut reproduce(&out, 1));
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        let mode = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o755, "a new output folder is rwxr-xr-x");
+    }
     let previous = tree(&out);
     let took = run_ok(&mut reproduce(&out, 2));
     let new = tree(&out);
@@ -328,7 +334,20 @@ fn reproduce_killed_at_random_leaves_the_previous_or_the_complete_new_folder() {
         );
     }
     eprintln!("outcomes: {outcomes:?}");
+    // A replaced folder keeps its permissions.
+    #[cfg(unix)]
+    let mode = |p: &Path| {
+        use std::os::unix::fs::PermissionsExt as _;
+        std::fs::metadata(p).unwrap().permissions().mode() & 0o777
+    };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o750)).unwrap();
+    }
     run_ok(&mut reproduce(&out, 2));
+    #[cfg(unix)]
+    assert_eq!(mode(&out), 0o750);
     assert!(complete_new(&tree(&out), &previous, &new));
     assert_eq!(leftovers(dir.path()), Vec::<String>::new());
 }

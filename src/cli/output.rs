@@ -511,6 +511,19 @@ fn default_permissions(f: &std::fs::File) -> Result<std::fs::Permissions> {
     Ok(f.metadata()?.permissions())
 }
 
+#[cfg(unix)]
+fn default_folder_permissions(dir: &Path) -> Result<std::fs::Permissions> {
+    use std::os::unix::fs::PermissionsExt as _;
+    let mut p = std::fs::metadata(dir)?.permissions();
+    p.set_mode(0o755);
+    Ok(p)
+}
+
+#[cfg(not(unix))]
+fn default_folder_permissions(dir: &Path) -> Result<std::fs::Permissions> {
+    Ok(std::fs::metadata(dir)?.permissions())
+}
+
 /// Output of a command: a file (written atomically) or, when `None`, standard output.
 pub fn emit(path: Option<&Path>, text: &str) -> Result<()> {
     match path {
@@ -576,8 +589,15 @@ pub fn write_folder(out: &Path, make: impl FnOnce(&Path) -> Result<()>) -> Resul
     make(tmp.path())?;
     std::fs::write(tmp.path().join(MARKER), MARKER_TEXT)
         .with_context(|| format!("writing {}", out.display()))?;
-    sync_tree(tmp.path()).with_context(|| format!("writing {}", out.display()))?;
     let written = || format!("writing {}", out.display());
+    // The previous folder's permissions, else the usual `rwxr-xr-x` (a temporary
+    // folder is created private).
+    let perms = match std::fs::metadata(&dest) {
+        Ok(m) if m.is_dir() => m.permissions(),
+        _ => default_folder_permissions(tmp.path())?,
+    };
+    std::fs::set_permissions(tmp.path(), perms).with_context(written)?;
+    sync_tree(tmp.path()).with_context(written)?;
     if std::fs::symlink_metadata(&dest).is_err() {
         std::fs::rename(tmp.path(), &dest).with_context(written)?;
         let _ = tmp.keep();
