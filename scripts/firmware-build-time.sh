@@ -8,15 +8,20 @@
 #   build-override  [profile.release.build-override] opt-level = 3: every build
 #                   script, proc macro and their dependencies optimised (syn,
 #                   serde_derive, thiserror-impl, prettyplease, ...)
-#   none            no override: build scripts at opt-level 0 (Cargo's default)
+#   none            no override: build scripts at opt-level 0 (Cargo's default; what
+#                   firmware/Cargo.toml and the README recommend)
 #   compiler        [profile.release.package.graphspn-compiler] opt-level = 3: only
-#                   the code generator optimised (what firmware/Cargo.toml and the
-#                   README recommend)
+#                   the code generator optimised
 #   compiler+print  graphspn-compiler, prettyplease and proc-macro2 at opt-level 3
 #
 # Each variant builds a copy of firmware/ whose profile section is replaced (the
 # rest of the repository is linked in, so the paths resolve as in firmware/), in
 # its own target folder under $TMPDIR, one variant after the other.
+#
+# With GRAPHSPN_BIG_MAP=FILE (a JSON map, e.g. from `graphspn generate --places
+# 10000`), each variant's build script is also run once more on FILE in place of the
+# demo floor (same model, 5 decompositions), and that code generation is timed too
+# (median of three runs).
 #
 # Usage: scripts/firmware-build-time.sh [VARIANT...]   (default: all four)
 set -euo pipefail
@@ -47,7 +52,14 @@ profile() {
 }
 
 (cd firmware && cargo fetch --quiet)
-printf '%-16s %8s %8s %10s\n' variant wall_s cpu_s codegen_s
+big="${GRAPHSPN_BIG_MAP:-}"
+if [ -n "$big" ]; then
+    # The maps' build script reads CARGO_MANIFEST_DIR/../../generated/demo.
+    mkdir -p "$work/big/generated/demo" "$work/big/a/maps"
+    cp generated/demo/model.json generated/demo/saarbrucken_seq2_night1.json "$work/big/generated/demo/"
+    cp "$big" "$work/big/generated/demo/floor.json"
+fi
+printf '%-16s %8s %8s %10s %s\n' variant wall_s cpu_s codegen_s "${big:+big_map_codegen_s}"
 for v in "${VARIANTS[@]}"; do
     tree="$work/$v"
     mkdir -p "$tree"
@@ -74,7 +86,17 @@ for v in "${VARIANTS[@]}"; do
     html="$(ls "$work/$v-target"/cargo-timings/cargo-timing-*.html | head -n1)"
     codegen="$(awk -F': ' '/"name":/ { name = $2 } /"mode":/ { mode = $2 }
         /"duration":/ && name ~ /"graphspn-firmware-maps"/ && mode ~ /"run-custom-build"/ { sub(/,$/, "", $2); print $2; exit }' "$html")"
-    printf '%-16s %8.1f %8.1f %10s\n' "$v" "$wall" "$(echo "$user + $sys" | bc)" "${codegen:-?}"
+    big_s=""
+    if [ -n "$big" ]; then
+        script="$(ls "$work/$v-target"/release/build/graphspn-firmware-maps-*/build-script-build | head -n1)"
+        mkdir -p "$work/big/out"
+        # The median of three runs.
+        big_s="$(for _ in 1 2 3; do
+            CARGO_MANIFEST_DIR="$work/big/a/maps" OUT_DIR="$work/big/out" TARGET="$TARGET" \
+                /usr/bin/time -f '%e' "$script" 2>&1 >/dev/null | tail -n1
+        done | sort -n | sed -n 2p)"
+    fi
+    printf '%-16s %8.1f %8.1f %10s %s\n' "$v" "$wall" "$(echo "$user + $sys" | bc)" "${codegen:-?}" "$big_s"
     [ -n "${KEEP:-}" ] && cp "$html" "$KEEP/$v.html"
     rm -rf "$work/$v-target"
 done
