@@ -249,8 +249,8 @@ fn toml_sections(text: &str) -> Vec<String> {
 /// A firmware crate gives its build script no profile of its own (README,
 /// "Firmware", measured by `scripts/firmware-build-time.sh`): no build-override,
 /// which optimises every build-time crate (syn, serde_derive, ...: 2.9x the clean
-/// build's CPU time), and no override on the generator either (19 s more per clean
-/// build for about 2 s less code generation).
+/// build's CPU time), and no override on the generator either (19-25 s more per
+/// clean build for 0.5-3 s less code generation).
 #[test]
 fn the_firmware_keeps_the_recommended_build_script_profile() {
     for manifest in ["firmware/Cargo.toml", "firmware/maps/Cargo.toml"] {
