@@ -96,7 +96,7 @@ pub struct RunOptions {
     /// empty unless --force.
     #[arg(long)]
     pub out: PathBuf,
-    /// Write into a non-empty --out folder, replacing files of the same names.
+    /// Replace a non-empty --out folder (one graphspn wrote) as a whole.
     #[arg(long)]
     pub force: bool,
     /// Master seed of every random step.
