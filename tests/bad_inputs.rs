@@ -324,6 +324,15 @@ fn set_col(line: &mut String, col: usize, value: &str) {
 /// Builds the fixture folder and the corpus.
 fn corpus(root: &Path) -> Vec<Case> {
     std::fs::copy(repo("generated/demo/model.json"), root.join("model.json")).unwrap();
+    std::fs::copy(
+        repo("generated/demo/tree_model.json"),
+        root.join("trees.json"),
+    )
+    .unwrap();
+    let mut bad_trees: Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("trees.json")).unwrap()).unwrap();
+    bad_trees["potential"][1] = json!(123.0);
+    write_json(&root.join("trees_asymmetric.json"), &bad_trees);
     std::fs::copy(repo("generated/demo/floor.json"), root.join("floor.json")).unwrap();
     std::fs::write(root.join("hand.rs"), "// mine\n").unwrap();
     std::fs::write(root.join("existing.json"), "{}\n").unwrap();
@@ -948,7 +957,135 @@ fn corpus(root: &Path) -> Vec<Case> {
     // Argument sets: flags out of range, outputs that may not be written.
     let m = "{root}/model.json";
     let f = "{root}/floor.json";
+    let t = "{root}/trees.json";
     let args: Vec<Case> = vec![
+        // tree mixtures
+        case(
+            "infer trees with decompositions",
+            &["infer", "--model", t, "--map", f, "--decompositions", "3"],
+            1,
+            &["--decompositions", "tree mixture"],
+        ),
+        case(
+            "infer trees 0",
+            &["infer", "--model", t, "--map", f, "--trees", "0"],
+            1,
+            &["--trees 0"],
+        ),
+        case(
+            "infer trees 65",
+            &["infer", "--model", t, "--map", f, "--trees", "65"],
+            1,
+            &["--trees 65"],
+        ),
+        case(
+            "infer graphspn with trees",
+            &["infer", "--model", m, "--map", f, "--trees", "2"],
+            1,
+            &["--trees", "GraphSPN"],
+        ),
+        case(
+            "infer asymmetric potential",
+            &[
+                "infer",
+                "--model",
+                "{root}/trees_asymmetric.json",
+                "--map",
+                f,
+            ],
+            1,
+            &["trees_asymmetric.json", "not symmetric", "(0, 1)"],
+        ),
+        case(
+            "decompose tree mixture",
+            &[
+                "decompose",
+                "--model",
+                t,
+                "--map",
+                f,
+                "--out",
+                "{root}/d.json",
+            ],
+            1,
+            &["trees.json", "tree_mixture", "not a GraphSPN"],
+        ),
+        case(
+            "train trees with epochs",
+            &[
+                "train",
+                "--family",
+                "tree-mixture",
+                "--epochs",
+                "3",
+                "--out",
+                "{root}/t2.json",
+            ],
+            1,
+            &["--epochs", "graphspn"],
+        ),
+        case(
+            "train graphspn with coupling",
+            &["train", "--coupling", "0.5", "--out", "{root}/t2.json"],
+            1,
+            &["--coupling", "tree-mixture"],
+        ),
+        case(
+            "train unknown family",
+            &["train", "--family", "forest", "--out", "{root}/t2.json"],
+            2,
+            &["--family", "forest"],
+        ),
+        case(
+            "train trees evidence exponent 0",
+            &[
+                "train",
+                "--family",
+                "tree-mixture",
+                "--evidence-exponent",
+                "0",
+                "--out",
+                "{root}/t2.json",
+            ],
+            2,
+            &["--evidence-exponent", "0"],
+        ),
+        case(
+            "train trees negative coupling",
+            &[
+                "train",
+                "--family",
+                "tree-mixture",
+                "--coupling",
+                "-1",
+                "--out",
+                "{root}/t2.json",
+            ],
+            1,
+            &["coupling", "-1"],
+        ),
+        case(
+            "render graphspn model",
+            &["render", "--map", f, "--model", m, "--out", "{root}/r.svg"],
+            1,
+            &["--model", "GraphSPN"],
+        ),
+        case(
+            "render tree out of range",
+            &[
+                "render",
+                "--map",
+                f,
+                "--model",
+                t,
+                "--tree",
+                "9",
+                "--out",
+                "{root}/r.svg",
+            ],
+            1,
+            &["--tree 9"],
+        ),
         // infer
         case(
             "infer decompositions 0",
@@ -2371,15 +2508,33 @@ fn the_examples_of_docs_formats_are_accepted() {
         std::fs::write(&p, blocks[k]).unwrap();
         p
     };
-    let (map, model, ev, decs) = (
+    let (map, model, trees, ev, decs) = (
         file("map.json", 0),
         file("model.json", 1),
-        file("ev.json", 2),
-        file("decs.json", 3),
+        file("trees.json", 2),
+        file("ev.json", 3),
+        file("decs.json", 4),
     );
     // The example model (relative weights 1 and 4) on the example map.
     let v = infer_json(&model, &map, None);
     assert!((probs(&v, 0)[1] - 4.0 / 13.0).abs() < 1e-12, "{v}");
+    // The example tree mixture on the example map (two places, one edge): exactly
+    // P(y) ∝ u(y1) u(y2) ψ(y1, y2).
+    let v = infer_json(&trees, &map, None);
+    assert_eq!(v["model"]["family"], "tree_mixture");
+    let u = [1.0, 2.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+    let psi = |a: usize, b: usize| match (a, b) {
+        (0, 0) => 2.0,
+        (1, 1) => 4.0,
+        (a, b) if a == b => 3.0,
+        _ => 1.0,
+    };
+    let z: f64 = (0..10)
+        .flat_map(|a| (0..10).map(move |b| (a, b)))
+        .map(|(a, b)| u[a] * u[b] * psi(a, b))
+        .sum();
+    let p_cr: f64 = (0..10).map(|b| u[1] * u[b] * psi(1, b)).sum::<f64>() / z;
+    assert!((probs(&v, 0)[1] - p_cr).abs() < 1e-12, "{v}");
     // The example evidence and decompositions with the demo model.
     let (out, _) = ok(bin()
         .args(["infer", "--model"])

@@ -357,7 +357,7 @@ fn the_validated_graphspn_options_are_on_the_command_line() {
         serde_json::from_str(&text).unwrap()
     };
     let (avg, post) = (infer("average"), infer("posterior"));
-    assert_eq!(avg["mixing"], "average");
+    assert_eq!(avg["model"]["mixing"], "average");
     assert_eq!(avg["log_likelihood"], post["log_likelihood"]);
     let rows = |v: &serde_json::Value| -> Vec<Vec<f64>> {
         v["places"]
@@ -389,4 +389,167 @@ fn the_validated_graphspn_options_are_on_the_command_line() {
             .unwrap()
             .contains("\"components\"")
     );
+}
+
+/// A tree mixture through the command line: train it, infer with both mixings, the
+/// MPE labelling, another tree count, and draw one of its spanning trees.
+#[test]
+fn a_tree_mixture_trains_infers_and_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("trees.json");
+    run_ok(
+        bin()
+            .args([
+                "train",
+                "--family",
+                "tree-mixture",
+                "--buildings",
+                "Freiburg",
+            ])
+            .args([
+                "--coupling",
+                "0.8",
+                "--evidence-exponent",
+                "3",
+                "--trees",
+                "3",
+            ])
+            .args(["--mixing", "posterior", "--out"])
+            .arg(&model),
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["family"], "tree_mixture");
+    assert_eq!(m["trees"], 3);
+    assert_eq!(m["evidence_exponent"], 3);
+    assert_eq!(m["settings"]["potentials"]["coupling"], 0.8);
+    let ev = dir.path().join("ev.json");
+    std::fs::write(
+        &ev,
+        r#"{"format": 1, "evidence": {"1": [0.1, 0.9, 0, 0, 0, 0, 0, 0, 0, 0], "7": [1, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2, 0.2]}}"#,
+    )
+    .unwrap();
+    let infer = |extra: &[&str]| -> serde_json::Value {
+        let text = run_ok(
+            bin()
+                .args(["infer", "--model"])
+                .arg(&model)
+                .arg("--map")
+                .arg(demo("floor.json"))
+                .arg("--evidence")
+                .arg(&ev)
+                .args(extra),
+        );
+        serde_json::from_str(&text).unwrap()
+    };
+    let post = infer(&["--mpe"]);
+    let avg = infer(&["--mixing", "average"]);
+    assert_eq!(post["model"]["family"], "tree_mixture");
+    assert_eq!(post["model"]["trees"], 3);
+    assert_eq!(post["model"]["mixing"], "posterior");
+    assert_eq!(avg["model"]["mixing"], "average");
+    assert_eq!(post["model"]["edges_covered"], post["model"]["edges"]);
+    assert_eq!(post["log_likelihood"], avg["log_likelihood"]);
+    assert!(post["log_likelihood"].as_f64().unwrap() < 0.0);
+    for v in [&post, &avg] {
+        for p in v["places"].as_array().unwrap() {
+            let row: Vec<f64> = serde_json::from_value(p["probs"].clone()).unwrap();
+            assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        }
+    }
+    let mpe = &post["mpe"];
+    assert!(mpe["log_probability"].as_f64().unwrap() >= mpe["log_max_product"].as_f64().unwrap());
+    assert_eq!(infer(&["--trees", "1"])["model"]["trees"], 1);
+    let svg = dir.path().join("t.svg");
+    run_ok(
+        bin()
+            .args(["render", "--map"])
+            .arg(demo("floor.json"))
+            .arg("--model")
+            .arg(&model)
+            .args(["--tree", "3", "--out"])
+            .arg(&svg),
+    );
+    let text = std::fs::read_to_string(&svg).unwrap();
+    roxmltree::Document::parse(&text).unwrap();
+    assert_eq!(
+        text.matches("tree-edge").count(),
+        79,
+        "a spanning tree of 80 places"
+    );
+}
+
+/// `evaluate --settings`: a held-out building (a COLD building's maps copied under
+/// another name) tested with the settings of a saved validation on the other two
+/// buildings, with no validation run; `--settings-of` picks the entry.
+#[test]
+fn evaluate_reuses_a_saved_validation() {
+    use graphspn_compiler::experiments::settings::{GraphSpnSetting, ModelSettings, MrfSetting};
+    use graphspn_compiler::mrf::BpOptions;
+    use graphspn_compiler::treemix::TreeTraining;
+    let dir = tempfile::tempdir().unwrap();
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/cold-topomaps");
+    let held = dir.path().join("stockholm_heldout");
+    std::fs::create_dir(&held).unwrap();
+    for seq in ["floor4_cloudy_a1", "floor4_cloudy_b"] {
+        let to = held.join(seq);
+        std::fs::create_dir(&to).unwrap();
+        for f in ["nodes.dat", "rooms.dat"] {
+            std::fs::copy(data.join("Stockholm").join(seq).join(f), to.join(f)).unwrap();
+        }
+    }
+    let trees = TreeTraining {
+        trees: 2,
+        ..TreeTraining::default()
+    };
+    let chosen = ModelSettings {
+        graphspn: GraphSpnSetting::paper(),
+        mrf2: MrfSetting::paper(BpOptions::default()),
+        mrf3: MrfSetting::paper(BpOptions::default()),
+        trees,
+    };
+    let settings = dir.path().join("validation.json");
+    let file = serde_json::json!({"settings": {"Stockholm": chosen, "Freiburg": chosen}});
+    std::fs::write(&settings, file.to_string()).unwrap();
+    let eval = |extra: &[&str], out: &str| {
+        bin()
+            .args(["evaluate", "--maps"])
+            .arg(&held)
+            .arg("--train")
+            .arg(data.join("Freiburg"))
+            .arg("--train")
+            .arg(data.join("Saarbrucken"))
+            .arg("--settings")
+            .arg(&settings)
+            .args(["--levels", "2", "--rounds", "1", "--no-novelty", "--out"])
+            .arg(dir.path().join(out))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let refused = eval(&[], "e0");
+    assert!(!refused.status.success());
+    let msg = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        msg.contains("--settings-of") && msg.contains("Freiburg, Stockholm"),
+        "{msg}"
+    );
+    let ok = eval(&["--settings-of", "Stockholm"], "e1");
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("e1/results.json")).unwrap())
+            .unwrap();
+    assert!(
+        json["validation"].as_array().unwrap().is_empty(),
+        "no validation run"
+    );
+    assert_eq!(json["buildings"][0]["settings"]["trees"]["trees"], 2);
+    for g in json["graphs"].as_array().unwrap() {
+        assert_eq!(g["building"], "stockholm_heldout");
+        assert!(g["accuracy"]["Tree mixture"].as_f64().unwrap() > 0.5);
+    }
 }

@@ -20,9 +20,10 @@
 //! - the instruction counter is exact to a few instructions on a loop of known size.
 //!
 //! The no-panic link check of `generated_no_std.rs` runs here for
-//! `thumbv7em-none-eabihf`. Needs the Rust targets and QEMU: `bash
-//! scripts/setup-mcu.sh` (CI's `.ci/run` calls it); the test fails if they are
-//! missing. The firmware builds into `target/firmware/`.
+//! `thumbv7em-none-eabihf`. Needs the Rust targets and QEMU: the tests run `bash
+//! scripts/setup-mcu.sh` themselves, once per test process (idempotent and quiet;
+//! it installs them on a fresh machine), and fail with its message if it fails. The
+//! firmware builds into `target/firmware/`.
 
 #[allow(dead_code)]
 #[path = "../firmware/src/evidence.rs"]
@@ -233,8 +234,34 @@ fn parse(text: &str) -> Report {
     }
 }
 
+/// Runs `scripts/setup-mcu.sh` (the Rust targets and QEMU) once per test process;
+/// panics with its output if it fails.
+fn setup() {
+    static DONE: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
+    let result = DONE.get_or_init(|| {
+        let out = Command::new("bash")
+            .arg(root().join("scripts/setup-mcu.sh"))
+            .stdin(Stdio::null())
+            .output()
+            .map_err(|e| format!("cannot run bash: {e}"))?;
+        if out.status.success() {
+            Ok(())
+        } else {
+            Err(format!(
+                "{}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            ))
+        }
+    });
+    if let Err(e) = result {
+        panic!("`{SETUP}` (the Rust targets and QEMU these tests need) failed:\n{e}");
+    }
+}
+
 /// `cargo build --release` of the firmware for `targets` (one cargo run).
 fn build_firmware(targets: &[&str], profile: &str, rustflags: Option<&str>) {
+    setup();
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(root().join("firmware"))
         .args(["build", "--quiet", "--profile", profile])
@@ -277,6 +304,7 @@ fn qemu_dir() -> PathBuf {
 /// A command running QEMU binary `name`: from the setup script's cache, else from
 /// `PATH`; fails naming the setup script if neither has it.
 fn qemu(name: &str) -> Command {
+    setup();
     let dir = qemu_dir();
     if dir.join(".complete").exists() {
         let mut cmd = Command::new(dir.join("usr/bin").join(name));
@@ -295,7 +323,7 @@ fn qemu(name: &str) -> Command {
         .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(name).is_file()));
     assert!(
         on_path,
-        "QEMU ({name}) is neither in {} nor on PATH: run `{SETUP}` (CI's .ci/run does)",
+        "QEMU ({name}) is neither in {} nor on PATH, though `{SETUP}` succeeded",
         dir.display()
     );
     Command::new(name)
@@ -1002,6 +1030,7 @@ fn firmware_build_dependencies_have_no_host_only_crates() {
 /// The no-panic link check of `generated_no_std.rs`, for Cortex-M4F.
 #[test]
 fn generated_code_links_for_cortex_m4f_without_any_panic_path() {
+    setup();
     no_panic_probe::link_check(Some(THUMB));
 }
 

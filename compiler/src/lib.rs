@@ -16,7 +16,8 @@
 //! | [`instance`] | the instance GraphSPN of a map (the paper's Alg. 1) |
 //! | [`codegen`] | straight-line `no_std` Rust for a known map, and the `build.rs` builder |
 //! | [`mrf`] | Markov random field baselines with loopy belief propagation |
-//! | [`experiments`] | evidence simulation and the paper's experiments |
+//! | [`noise`] | the paper's simulation of noisy local evidence (noise levels 1–6) |
+//! | [`experiments`] | the paper's experiments: validation, reproduction, report |
 //!
 //! Features: `host` (default) is everything; `codegen` alone is code generation and
 //! the loading it needs (maps, models, decompositions) — what a firmware's `build.rs`
@@ -44,6 +45,9 @@ pub mod map;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod mrf;
+/// *(host)*
+#[cfg(feature = "host")]
+pub mod noise;
 mod par;
 /// *(host)*
 #[cfg(feature = "host")]

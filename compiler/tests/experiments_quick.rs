@@ -34,6 +34,7 @@ fn quick_reproduction_on_cold() {
     // Timings are the only thing allowed to differ.
     for b in rep.buildings.iter_mut().chain(rep1.buildings.iter_mut()) {
         b.train_seconds = 0.0;
+        b.train_seconds_trees = 0.0;
     }
     for v in rep.validation.iter_mut().chain(rep1.validation.iter_mut()) {
         v.seconds.clear();
@@ -49,9 +50,8 @@ fn quick_reproduction_on_cold() {
     let report = std::fs::read_to_string(out.path().join("REPORT.md")).unwrap();
     assert!(report.contains("Placeholders without evidence"));
     assert!(report.contains("Generated code check"));
-    let parsed: Reproduction =
-        serde_json::from_str(&std::fs::read_to_string(out.path().join("results.json")).unwrap())
-            .expect("results.json parses");
+    let json = std::fs::read_to_string(out.path().join("results.json")).unwrap();
+    let parsed: Reproduction = serde_json::from_str(&json).expect("results.json parses");
     // 1 building × 2 maps × 2 levels × 1 round × 2 experiments.
     assert_eq!(parsed.graphs.len(), 8);
     assert_eq!(parsed.buildings[0].test_maps.len(), 2);
@@ -65,7 +65,7 @@ fn quick_reproduction_on_cold() {
         roxmltree::Document::parse(&svg).unwrap_or_else(|e| panic!("{f} is not XML: {e}"));
     }
     for g in &parsed.graphs {
-        for a in g.accuracy.iter().chain([&g.evidence_only]) {
+        for a in g.accuracy.0.iter().chain([&g.evidence_only]) {
             assert!(
                 a.is_nan() && g.scored == 0 || (0.0..=1.0).contains(a),
                 "{g:?}"
@@ -79,23 +79,35 @@ fn quick_reproduction_on_cold() {
         .collect();
     assert_eq!(nl2.len(), 2);
     for g in nl2 {
-        assert!(
-            g.accuracy[0] > g.evidence_only,
-            "GraphSPN {} does not beat the evidence {} on {}",
-            g.accuracy[0],
-            g.evidence_only,
-            g.map
-        );
+        for (name, a) in g.accuracy.named().take(2) {
+            assert!(
+                *a > g.evidence_only,
+                "{name} {a} does not beat the evidence {} on {}",
+                g.evidence_only,
+                g.map
+            );
+        }
+    }
+    // results.json names every model beside its figures.
+    let raw: serde_json::Value = serde_json::from_str(&json).unwrap();
+    for g in raw["graphs"].as_array().unwrap() {
+        for m in graphspn_compiler::experiments::models::MODELS {
+            assert!(g["accuracy"][m].is_number(), "{m} missing in {g}");
+        }
+        assert!(g["bp_converged"]["MRF-2"].is_boolean());
+    }
+    for n in raw["novelty"].as_array().unwrap() {
+        assert!(n["score"]["Tree mixture"].is_number());
     }
     assert_eq!(parsed.auc.len(), 2, "both novelty sets scored");
     for (_, auc) in &parsed.auc {
-        assert!(auc.iter().all(|a| (0.0..=1.0).contains(a)));
+        assert!(auc.0.iter().all(|a| (0.0..=1.0).contains(a)));
     }
 }
 
 #[test]
 fn novelty_labellings_swap_whole_maps_and_connected_quarter_regions() {
-    use graphspn_compiler::experiments::reproduce::{
+    use graphspn_compiler::experiments::novelty::{
         LOCAL_REGION_SHARE, LOCAL_REGIONS, NoveltySet, novelty_labellings,
     };
     use graphspn_compiler::template::Adjacency;
@@ -162,7 +174,8 @@ fn novelty_labellings_swap_whole_maps_and_connected_quarter_regions() {
 
 #[test]
 fn class_prior_and_prior_corrected_rows() {
-    use graphspn_compiler::experiments::reproduce::{class_prior, graphspn_rows};
+    use graphspn_compiler::experiments::models::graphspn_rows;
+    use graphspn_compiler::experiments::reproduce::class_prior;
     let all = load_data(&data()).unwrap();
     // Freiburg has no LAB and no MR: smoothing keeps them at 1% (α = 0.1, 10 classes).
     let p = class_prior(&all["Freiburg"], 10);

@@ -1,6 +1,7 @@
 //! ROC/AUC and tie-aware accuracy used by the reproduction.
 
-use graphspn_compiler::experiments::reproduce::{accuracy, auc, roc_curve};
+use graphspn_compiler::experiments::novelty::{auc, roc_curve};
+use graphspn_compiler::experiments::reproduce::accuracy;
 use proptest::prelude::*;
 
 #[test]

@@ -5,7 +5,7 @@
 use std::collections::VecDeque;
 
 use graphspn_compiler::experiments::evidence::{NoiseLevel, simulate_map_evidence};
-use graphspn_compiler::experiments::reproduce::temper_rows;
+use graphspn_compiler::experiments::models::temper_rows;
 use graphspn_compiler::map::{TopoMap, cold};
 use graphspn_compiler::mrf::{
     BpOptions, CooccurrenceParams, FactorGraph, Mrf2, Mrf3, MrfModel, Normalisation, Schedule,

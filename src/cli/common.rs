@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use graphspn_compiler::decompose::{Decomposition, DecompositionStrategy};
+use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::instance::Instance;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::cold::Dropped;
@@ -131,6 +132,14 @@ pub fn load_model(path: &Path) -> Result<Model> {
         bail!("--model {}: no such file", path.display());
     }
     Ok(Model::load(path)?)
+}
+
+/// Reads a model file of either family (`--model`).
+pub fn load_any_model(path: &Path) -> Result<AnyModel> {
+    if !path.is_file() {
+        bail!("--model {}: no such file", path.display());
+    }
+    Ok(AnyModel::load(path)?)
 }
 
 /// Checks a number of decompositions given with `flag` before any work.

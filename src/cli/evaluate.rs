@@ -13,7 +13,7 @@ use graphspn_compiler::map::{TopoMap, cold, load_map_set, map_set_name};
 
 use super::common::require_data_dir;
 use super::output::{Outputs, write_folder};
-use super::reproduce::{ProtocolOptions, RunOptions};
+use super::reproduce::{ProtocolOptions, RunOptions, read_settings};
 
 /// Arguments of `graphspn evaluate`.
 #[derive(Args)]
@@ -21,13 +21,15 @@ use super::reproduce::{ProtocolOptions, RunOptions};
   graphspn evaluate --maps my_building/ --out eval/
   graphspn evaluate --maps floor1.json --maps floor2.json --levels 2,5 --rounds 3 --out eval/
   graphspn evaluate --maps siteA/ --train siteB/ --train siteC/ --out eval/
+  graphspn evaluate --maps heldout/ --train data/cold-topomaps/Freiburg --train data/cold-topomaps/Saarbrucken --settings val/validation.json --settings-of Stockholm --out eval/
 
 Each --maps path is one test building: a JSON map, a COLD sequence folder, or a folder
 of JSON maps and/or COLD sequence folders. Maps need a ground-truth class for every
 place (the evidence is simulated from it, as in the paper's protocol) and the models'
 class set. Models are trained on the --train buildings (default: the three COLD
 buildings), every model's settings chosen by leave-one-training-building-out
-validation on them; the --maps buildings are never read before testing.")]
+validation on them (or taken from a saved validation with --settings); the --maps
+buildings are never read before testing.")]
 pub struct EvaluateArgs {
     /// A test building (repeatable): JSON map, COLD sequence folder, or folder of maps.
     #[arg(long = "maps", required = true)]
@@ -46,6 +48,15 @@ pub struct EvaluateArgs {
     /// Test maps per building (default: all), chosen at random (seeded).
     #[arg(long)]
     max_maps: Option<usize>,
+    /// Use the settings of a saved validation (`graphspn validate --out DIR` writes
+    /// DIR/validation.json) for every test building instead of validating again. They
+    /// must come from a validation on the same training buildings.
+    #[arg(long)]
+    settings: Option<PathBuf>,
+    /// Which entry of --settings to use (the test building it was validated for);
+    /// needed when the file holds more than one.
+    #[arg(long, requires = "settings")]
+    settings_of: Option<String>,
 }
 
 /// Loads the map sets of `paths` under their names; `flag` names them in errors.
@@ -108,6 +119,30 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
         cfg.maps_per_building = m;
     }
 
+    let chosen = match &args.settings {
+        Some(p) => {
+            outputs.input("--settings", p);
+            let all = read_settings(p).with_context(|| format!("--settings {}", p.display()))?;
+            let key = match (&args.settings_of, all.len()) {
+                (Some(k), _) => k.clone(),
+                (None, 1) => all.keys().next().cloned().unwrap_or_default(),
+                (None, n) => bail!(
+                    "--settings {}: holds the settings of {n} test buildings ({}); pick one with --settings-of",
+                    p.display(),
+                    all.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+            };
+            let Some(s) = all.get(&key) else {
+                bail!(
+                    "--settings-of {key}: {} holds settings for {} only",
+                    p.display(),
+                    all.keys().cloned().collect::<Vec<_>>().join(", ")
+                );
+            };
+            Some(s.clone())
+        }
+        None => None,
+    };
     let start = Instant::now();
     let tests = load_sets("--maps", &args.maps)?;
     let train = match &data {
@@ -150,6 +185,14 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
     }
     cfg.test_buildings = tests.iter().map(|(n, _)| n.clone()).collect();
     cfg.train_buildings = Some(train.iter().map(|(n, _)| n.clone()).collect());
+    if let Some(s) = chosen {
+        cfg.settings = Some(
+            cfg.test_buildings
+                .iter()
+                .map(|b| (b.clone(), s.clone()))
+                .collect(),
+        );
+    }
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
     write_folder(&args.run.out, |dir| {

@@ -1,5 +1,6 @@
 //! `graphspn infer`: posterior class marginals (and optionally the MPE labelling) of
-//! every place of a map, given per-place evidence, through the instance GraphSPN.
+//! every place of a map, given per-place evidence, through the instance GraphSPN or
+//! the tree mixture (whichever family the model file holds).
 //!
 //! Evidence file (JSON): `{"format": 1, "evidence": {"<place id>": [α per class], …}}`.
 //! α are non-negative class likelihoods (need not sum to 1, not all 0); places not
@@ -21,11 +22,14 @@ use serde_json::json;
 
 use super::common::{
     check_component_memory, check_decomposition_count, component_instance_of, data_dir,
-    declare_map, decompositions_for, load_model, parse_strategy, read_map,
+    declare_map, decompositions_for, load_any_model, parse_strategy, read_map,
 };
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
-use graphspn_compiler::instance::Mixing;
+use graphspn_compiler::family::AnyModel;
+use graphspn_compiler::interpreter::{Marginals, Mpe};
+use graphspn_compiler::spn::Mixing;
+use graphspn_compiler::treemix::{MAX_TREES, TreeInstance};
 
 /// Parses `--mixing` (`posterior` or `average`).
 fn parse_mixing(s: &str) -> Result<Mixing, String> {
@@ -42,6 +46,7 @@ pub const EVIDENCE_FORMAT: u32 = 1;
     after_help = "Examples:
   graphspn infer --model generated/demo/model.json --map generated/demo/floor.json
   graphspn infer --model model.json --map Freiburg/seq1_cloudy1 --evidence ev.json --mpe --out result.json --svg result.svg
+  graphspn infer --model generated/demo/tree_model.json --map generated/demo/floor.json --trees 4
 
 Evidence file (JSON; docs/FORMATS.md):
   {\"format\": 1, \"evidence\": {\"12\": [0.1, 0.9, 0, 0, 0, 0, 0, 0, 0, 0]}}
@@ -49,7 +54,7 @@ one row per place id, one non-negative likelihood per class of the map (in the m
 class order, not all 0; need not sum to 1). Places not listed have no evidence."
 )]
 pub struct InferArgs {
-    /// Model file written by `graphspn train`.
+    /// Model file written by `graphspn train` (a GraphSPN or a tree mixture).
     #[arg(long)]
     model: PathBuf,
     /// The map: a JSON map, a COLD sequence folder, or a sequence name under --data.
@@ -62,28 +67,33 @@ pub struct InferArgs {
     /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Number of decompositions mixed by the instance (1..=1000).
-    #[arg(long, default_value_t = 5)]
-    decompositions: usize,
+    /// GraphSPN: number of decompositions mixed by the instance (1..=1000; default 5).
+    #[arg(long)]
+    decompositions: Option<usize>,
     /// Read the decompositions from this file (written by `graphspn decompose`)
     /// instead of making them.
     #[arg(long, conflicts_with_all = ["decompositions", "seed"])]
     decompositions_file: Option<PathBuf>,
-    /// Seed of the decompositions.
+    /// Seed of the decompositions (GraphSPN) or of the spanning trees (tree mixture).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// How decompositions are drawn: `paper` (the authors' scheme) or `cover` (frontier
-    /// places join their neighbour's component rather than stay alone).
-    #[arg(long, default_value = "paper", value_parser = parse_strategy, conflicts_with = "decompositions_file")]
-    strategy: DecompositionStrategy,
+    /// GraphSPN: how decompositions are drawn: `paper` (the authors' scheme) or
+    /// `cover` (frontier places join their neighbour's component rather than stay
+    /// alone; default paper).
+    #[arg(long, value_parser = parse_strategy, conflicts_with = "decompositions_file")]
+    strategy: Option<DecompositionStrategy>,
+    /// Tree mixture: spanning trees mixed (1..=64; default: the model's).
+    #[arg(long)]
+    trees: Option<usize>,
     /// Write the result JSON here instead of standard output.
     #[arg(long)]
     out: Option<PathBuf>,
-    /// How the decompositions' marginals are mixed: `posterior` (the exact marginals
-    /// of the instance GraphSPN) or `average` (the mean of each decomposition's exact
-    /// marginals; the log-likelihood stays the mixture's).
-    #[arg(long, default_value = "posterior", value_parser = parse_mixing)]
-    mixing: Mixing,
+    /// How the decompositions' (or trees') marginals are mixed: `posterior` (the exact
+    /// marginals of the mixture) or `average` (the mean of each component's exact
+    /// marginals; the log-likelihood stays the mixture's). Default: posterior for
+    /// GraphSPN, the model's own for a tree mixture.
+    #[arg(long, value_parser = parse_mixing)]
+    mixing: Option<Mixing>,
     /// Also compute the max-product (MPE) labelling.
     #[arg(long)]
     mpe: bool,
@@ -219,7 +229,9 @@ pub fn parse_evidence(
 pub fn run(args: InferArgs) -> Result<()> {
     // Every argument and input is checked before any work or write.
     let mut outputs = Outputs::new(args.force);
-    check_decomposition_count("--decompositions", args.decompositions)?;
+    if let Some(d) = args.decompositions {
+        check_decomposition_count("--decompositions", d)?;
+    }
     outputs.input("--model", &args.model);
     let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     if let Some(p) = &args.evidence {
@@ -234,10 +246,9 @@ pub fn run(args: InferArgs) -> Result<()> {
     if let Some(p) = &args.svg {
         outputs.file("--svg", p)?;
     }
-    let model = load_model(&args.model)?;
+    let model = load_any_model(&args.model)?;
     let loaded = read_map(&map_path)?;
     let map = &loaded.map;
-    check_component_memory(&model, map, args.decompositions)?;
     let rows = match &args.evidence {
         Some(p) => {
             let text = std::fs::read_to_string(p)
@@ -246,22 +257,82 @@ pub fn run(args: InferArgs) -> Result<()> {
         }
         None => vec![vec![1.0; map.classes.len()]; map.num_places()],
     };
-    let decs = decompositions_for(
-        &model,
-        map,
-        args.decompositions_file.as_deref(),
-        args.decompositions,
-        args.seed,
-        args.strategy,
-    )?;
-    let count = decs.len();
-    // Component-wise evaluation against the shared template networks: memory linear
-    // in places (the explicit instance SPN copies every weight per component).
-    let mut im = component_instance_of(&model, map, decs)?;
-    im.set_all_evidence(&rows).context("setting the evidence")?;
-    let m = im
-        .marginals_mixed(args.mixing)
-        .context("computing marginals")?;
+    let (m, mpe, mixture) = match &model {
+        AnyModel::Graphspn(model) => {
+            if args.trees.is_some() {
+                bail!("--trees applies to tree-mixture models; --model holds a GraphSPN");
+            }
+            let count = args.decompositions.unwrap_or(5);
+            check_component_memory(model, map, count)?;
+            let decs = decompositions_for(
+                model,
+                map,
+                args.decompositions_file.as_deref(),
+                count,
+                args.seed,
+                args.strategy.unwrap_or_default(),
+            )?;
+            let count = decs.len();
+            // Component-wise evaluation against the shared template networks: memory
+            // linear in places (the explicit instance SPN copies every weight per component).
+            let mut im = component_instance_of(model, map, decs)?;
+            im.set_all_evidence(&rows).context("setting the evidence")?;
+            let mixing = args.mixing.unwrap_or_default();
+            let m = im.marginals_mixed(mixing).context("computing marginals")?;
+            let mpe = match args.mpe {
+                true => Some(im.mpe(&[]).context("computing the MPE labelling")?),
+                false => None,
+            };
+            (
+                m,
+                mpe,
+                json!({"family": "graphspn", "decompositions": count, "mixing": mixing.name()}),
+            )
+        }
+        AnyModel::TreeMixture(model) => {
+            let gspn_only = [
+                ("--decompositions", args.decompositions.is_some()),
+                ("--decompositions-file", args.decompositions_file.is_some()),
+                ("--strategy", args.strategy.is_some()),
+            ];
+            if let Some((flag, _)) = gspn_only.iter().find(|f| f.1) {
+                bail!("{flag} applies to GraphSPN models; --model holds a tree mixture");
+            }
+            let mut model = model.clone();
+            if let Some(t) = args.trees {
+                if !(1..=MAX_TREES).contains(&t) {
+                    bail!("--trees {t}: give 1 to {MAX_TREES} trees");
+                }
+                model.trees = t;
+            }
+            let mixing = args.mixing.unwrap_or(model.mixing);
+            let mut inst = TreeInstance::with_covering_trees(&model, map, args.seed)?;
+            inst.set_all_evidence(&rows)
+                .context("setting the evidence")?;
+            let m = inst
+                .marginals_mixed(mixing)
+                .context("computing marginals")?
+                .mixed;
+            let mpe = match args.mpe {
+                true => Some(
+                    inst.mpe(&vec![None; map.num_places()])
+                        .context("computing the MPE labelling")?,
+                ),
+                false => None,
+            };
+            let (covered, edges) = inst.trees().coverage(map);
+            let doc = json!({
+                "family": "tree_mixture",
+                "trees": model.trees,
+                "edges_covered": covered,
+                "edges": edges,
+                "mixing": mixing.name(),
+            });
+            (m, mpe, doc)
+        }
+    };
+    let m: Marginals = m;
+    let mpe: Option<Mpe> = mpe;
     let names = map.classes.names();
     let argmax = |row: &[f64]| {
         let mut best = 0;
@@ -281,14 +352,12 @@ pub fn run(args: InferArgs) -> Result<()> {
         "format": 1,
         "map": map.name,
         "classes": names,
-        "decompositions": count,
+        "model": mixture,
         "seed": args.seed,
-        "mixing": args.mixing.name(),
         "log_likelihood": m.log_likelihood,
         "places": places,
     });
-    if args.mpe {
-        let mpe = im.mpe(&[]).context("computing the MPE labelling")?;
+    if let Some(mpe) = mpe {
         let labels: BTreeMap<String, &str> = map
             .places()
             .zip(&mpe.assignment)
@@ -303,7 +372,14 @@ pub fn run(args: InferArgs) -> Result<()> {
     let text = serde_json::to_string_pretty(&doc)? + "\n";
     let svg = args.svg.as_ref().map(|_| {
         let opts = RenderOptions {
-            title: Some(format!("{}: GraphSPN marginals", map.name)),
+            title: Some(format!(
+                "{}: {} marginals",
+                map.name,
+                match model.family() {
+                    graphspn_compiler::family::ModelFamily::Graphspn => "GraphSPN",
+                    graphspn_compiler::family::ModelFamily::TreeMixture => "tree-mixture",
+                }
+            )),
             distributions: Some(&m.probs),
             ..RenderOptions::default()
         };

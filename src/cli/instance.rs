@@ -1,4 +1,5 @@
-//! `graphspn instance`: export the instance GraphSPN of a map as JSON or Graphviz dot.
+//! `graphspn instance`: export the instance SPN of a map (the GraphSPN's, or the
+//! explicit SPN of a tree mixture) as JSON or Graphviz dot.
 
 use std::path::PathBuf;
 
@@ -6,11 +7,15 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 
 use super::common::{
-    check_decomposition_count, data_dir, declare_map, decompositions_for, instance_of, load_model,
-    parse_strategy, read_map,
+    check_decomposition_count, data_dir, declare_map, decompositions_for, instance_of,
+    load_any_model, parse_strategy, read_map,
 };
 use super::output::{Outputs, emit};
+use anyhow::bail;
 use graphspn_compiler::decompose::DecompositionStrategy;
+use graphspn_compiler::family::AnyModel;
+use graphspn_compiler::instance::{spn_dot, tree_instance_json};
+use graphspn_compiler::treemix::{TreeInstance, instance_spn};
 
 /// Output format of `graphspn instance`.
 #[derive(Clone, Copy, ValueEnum)]
@@ -27,10 +32,12 @@ pub enum InstanceFormat {
     allow_negative_numbers = true,
     after_help = "Examples:
   graphspn instance --model generated/demo/model.json --map generated/demo/floor.json --out floor-instance.json
-  graphspn instance --model model.json --map Freiburg/seq1_cloudy1 --format dot --decompositions 1 | dot -Tsvg > spn.svg"
+  graphspn instance --model model.json --map Freiburg/seq1_cloudy1 --format dot --decompositions 1 | dot -Tsvg > spn.svg
+  graphspn instance --model generated/demo/tree_model.json --map generated/demo/floor.json --out trees-instance.json"
 )]
 pub struct InstanceArgs {
-    /// Model file written by `graphspn train`.
+    /// Model file written by `graphspn train` (a GraphSPN, or a tree mixture: its
+    /// explicit SPN, each tree in its directed form, and the trees are exported).
     #[arg(long)]
     model: PathBuf,
     /// The map: a JSON map, a COLD sequence folder, or a sequence name under --data.
@@ -75,7 +82,36 @@ pub fn run(args: InstanceArgs) -> Result<()> {
     if let Some(p) = &args.out {
         outputs.file("--out", p)?;
     }
-    let model = load_model(&args.model)?;
+    let model = match load_any_model(&args.model)? {
+        AnyModel::Graphspn(m) => m,
+        AnyModel::TreeMixture(t) => {
+            if args.decompositions_file.is_some() {
+                bail!(
+                    "--decompositions-file applies to GraphSPN models; --model holds a tree mixture"
+                );
+            }
+            let loaded = read_map(&map_path)?;
+            let map = &loaded.map;
+            let inst = TreeInstance::with_covering_trees(&t, map, args.seed)?;
+            let spn = instance_spn(&inst)?;
+            let text = match args.format {
+                InstanceFormat::Json => tree_instance_json(map, inst.trees(), &spn),
+                InstanceFormat::Dot => spn_dot(map, &spn, &format!("tree mixture of {}", map.name)),
+            };
+            emit(args.out.as_deref(), &text)?;
+            if let Some(p) = &args.out {
+                eprintln!(
+                    "wrote the tree-mixture instance of {} ({} trees, {} nodes, {} edges) to {}",
+                    map.name,
+                    inst.trees().len(),
+                    spn.nodes.len(),
+                    spn.num_edges(),
+                    p.display()
+                );
+            }
+            return Ok(());
+        }
+    };
     let loaded = read_map(&map_path)?;
     let map = &loaded.map;
     let decs = decompositions_for(

@@ -4,13 +4,17 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::map::TopoMap;
 use graphspn_compiler::map::cold;
 use graphspn_compiler::map::stats::{MapStats, comparison_table};
 use graphspn_compiler::map::synthetic::{SyntheticParams, generate};
 use graphspn_compiler::render::{RenderOptions, render_svg};
+use graphspn_compiler::treemix::SpanningTrees;
 
-use super::common::{data_dir, declare_map, read_map, require_data_dir, write_stdout};
+use super::common::{
+    data_dir, declare_map, load_any_model, read_map, require_data_dir, write_stdout,
+};
 use super::output::{Outputs, write_files};
 
 /// Smallest and largest synthetic floor (places).
@@ -78,7 +82,8 @@ pub fn stats(args: StatsArgs) -> Result<()> {
     allow_negative_numbers = true,
     after_help = "Examples:
   graphspn render --map Freiburg/seq1_cloudy1 --out freiburg.svg
-  graphspn render --synthetic 500 --seed 2 --title \"A synthetic floor\" --out floor.svg"
+  graphspn render --synthetic 500 --seed 2 --title \"A synthetic floor\" --out floor.svg
+  graphspn render --map generated/demo/floor.json --model generated/demo/tree_model.json --tree 2 --out trees.svg"
 )]
 pub struct RenderArgs {
     /// A COLD sequence folder (nodes.dat + rooms.dat), a JSON map, or a
@@ -101,6 +106,13 @@ pub struct RenderArgs {
     /// Title (default: the map name).
     #[arg(long)]
     title: Option<String>,
+    /// A tree-mixture model: draw one of its spanning trees of the map (`--tree`,
+    /// seeded by `--seed`) over the map.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Which spanning tree to draw (1 = the first; at most the model's tree count).
+    #[arg(long, requires = "model")]
+    tree: Option<usize>,
     /// Output SVG file.
     #[arg(long)]
     out: PathBuf,
@@ -116,21 +128,51 @@ pub fn render(args: RenderArgs) -> Result<()> {
         Some(p) => Some(declare_map(p, data_dir(args.data), &mut outputs)?),
         None => None,
     };
+    if let Some(p) = &args.model {
+        outputs.input("--model", p);
+    }
     outputs.file("--out", &args.out)?;
+    let model = match &args.model {
+        Some(p) => match load_any_model(p)? {
+            AnyModel::TreeMixture(t) => Some(t),
+            AnyModel::Graphspn(_) => bail!(
+                "--model {}: holds a GraphSPN; render draws the spanning trees of a tree mixture (infer --svg draws a GraphSPN's marginals)",
+                p.display()
+            ),
+        },
+        None => None,
+    };
     let m = match (&map_path, args.synthetic) {
         (Some(p), _) => read_map(p)?.map,
         (None, Some(n)) => synthetic("--synthetic", n, args.seed)?,
         (None, None) => bail!("give --map PATH or --synthetic N"),
     };
+    let tree = match &model {
+        Some(t) => {
+            let k = args.tree.unwrap_or(1);
+            if !(1..=t.trees).contains(&k) {
+                bail!(
+                    "--tree {k}: the model mixes {} trees (give 1 to {})",
+                    t.trees,
+                    t.trees
+                );
+            }
+            let trees = SpanningTrees::covering(&m, t.trees, args.seed)?;
+            Some((k, t.trees, trees.forests[k - 1].edges()))
+        }
+        None => None,
+    };
     let opts = RenderOptions {
-        title: Some(args.title.unwrap_or_else(|| {
-            format!(
+        title: Some(args.title.unwrap_or_else(|| match &tree {
+            Some((k, t, _)) => format!("{}: spanning tree {k} of {t} (seed {})", m.name, args.seed),
+            None => format!(
                 "{} ({} places, {} edges)",
                 m.name,
                 m.num_places(),
                 m.num_edges()
-            )
+            ),
         })),
+        tree: tree.as_ref().map(|t| t.2.as_slice()),
         ..RenderOptions::default()
     };
     write_files(&[(&args.out, render_svg(&m, &opts).as_bytes())])?;

@@ -96,7 +96,7 @@ pub struct RunOptions {
     /// empty unless --force.
     #[arg(long)]
     pub out: PathBuf,
-    /// Write into a non-empty --out folder, replacing files of the same names.
+    /// Replace a non-empty --out folder (one graphspn wrote) as a whole.
     #[arg(long)]
     pub force: bool,
     /// Master seed of every random step.
@@ -210,7 +210,7 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
 }
 
 /// Reads the per-building settings of a validation.json.
-fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSettings>> {
+pub fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSettings>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let v: serde_json::Value =

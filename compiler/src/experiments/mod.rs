@@ -1,6 +1,14 @@
-//! Evidence simulation and the paper's experiments.
+//! The paper's experiments: validation, reproduction, report.
+//!
+//! `evidence` is the evidence simulation ([`crate::noise`]), re-exported here under
+//! its former name.
 
-pub mod evidence;
+pub use crate::noise as evidence;
+pub mod ceiling;
+pub mod error;
+pub mod models;
+pub mod novelty;
 pub mod report;
 pub mod reproduce;
+pub mod settings;
 pub mod validate;

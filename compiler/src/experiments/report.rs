@@ -5,9 +5,13 @@ use std::path::Path;
 
 use super::evidence::derive_seed;
 use super::evidence::{NoiseLevel, PAPER_TABLE1};
+use super::models::{
+    FIRST_PAPER_MODEL, GRAPHSPN, MODELS, MRF_MODELS, MRF2, MRF3, NUM_MODELS, OUR_MODELS, Scores,
+    TREES,
+};
+use super::novelty::{LOCAL_REGIONS, NoveltySet, novelty_points, roc_curve};
 use super::reproduce::{
-    BuildingSetup, Experiment, FIRST_PAPER_MODEL, GraphResult, MODELS, MRF_MODELS, NUM_MODELS,
-    NoveltySet, ReproduceConfig, ReproduceError, Reproduction, novelty_points, roc_curve,
+    BuildingSetup, Experiment, GraphResult, ReproduceConfig, ReproduceError, Reproduction,
     run_graph,
 };
 use crate::map::TopoMap;
@@ -133,7 +137,7 @@ pub fn best_baseline(
         let v = per_map(rep, building, e, level, |g| g.accuracy[k]);
         v.iter().sum::<f64>() / v.len().max(1) as f64
     };
-    if m(2) > m(1) { 2 } else { 1 }
+    if m(MRF3) > m(MRF2) { MRF3 } else { MRF2 }
 }
 
 fn ci_seed(rep: &Reproduction, building: Option<&str>, e: Experiment, level: u8, k: u64) -> u64 {
@@ -214,8 +218,9 @@ fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool) -> String
     s
 }
 
-/// Paired differences GraphSPN − the better tuned MRF (per map, then bootstrap over maps).
-fn paired_table(rep: &Reproduction, e: Experiment) -> String {
+/// Paired differences model `ours` − the better tuned MRF (per map, then bootstrap
+/// over maps).
+fn paired_table(rep: &Reproduction, e: Experiment, ours: usize) -> String {
     let levels = levels_of(rep);
     let mut s = String::new();
     let mut head = "| Test building |".to_string();
@@ -229,11 +234,87 @@ fn paired_table(rep: &Reproduction, e: Experiment) -> String {
         let _ = write!(s, "| {} |", b.unwrap_or("**all**"));
         for &l in &levels {
             let k = best_baseline(rep, b, e, l);
-            let v = per_map(rep, b, e, l, |g| g.accuracy[0] - g.accuracy[k]);
-            let ci = bootstrap_ci(&v, ci_seed(rep, b, e, l, 50));
+            let v = per_map(rep, b, e, l, |g| g.accuracy[ours] - g.accuracy[k]);
+            let ci = bootstrap_ci(&v, ci_seed(rep, b, e, l, 50 + ours as u64));
             let _ = write!(s, " {} vs {} |", fmt_ci(ci), MODELS[k]);
         }
         s.push('\n');
+    }
+    s
+}
+
+/// The paired-difference table of each of our models ([`OUR_MODELS`]).
+fn paired_tables(rep: &Reproduction, e: Experiment) -> String {
+    let mut s = String::new();
+    for k in OUR_MODELS {
+        let _ = writeln!(
+            s,
+            "\nPaired difference {m} − the better tuned MRF of the cell (percentage points, \
+             per map then bootstrap over maps); an interval above 0 means {m} wins:\n",
+            m = MODELS[k]
+        );
+        s.push_str(&paired_table(rep, e, k));
+    }
+    s
+}
+
+/// The placeholder ceiling ([`super::ceiling`]) beside the models' placeholder accuracy
+/// at the lowest and highest noise level.
+fn ceiling_section(rep: &Reproduction) -> String {
+    if rep.ceiling.is_empty() {
+        return String::new();
+    }
+    let levels = levels_of(rep);
+    let (lo, hi) = (levels[0], levels[levels.len() - 1]);
+    let mut s = format!(
+        "\nHow far can placeholders go? An oracle that knows the true class of every \
+         explored place and labels each placeholder with the class most often found \
+         there in the training buildings, given the classes of its explored neighbours \
+         (one hop) or also their neighbours' (two hops) — mean over maps, in %, beside \
+         the models at NL{lo} and NL{hi}:\n\n\
+         | Test building | placeholders | oracle, one hop | oracle, two hops | {} NL{lo} | {} NL{lo} | better tuned MRF NL{lo} | {} NL{hi} | better tuned MRF NL{hi} |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
+        MODELS[TREES], MODELS[GRAPHSPN], MODELS[TREES]
+    );
+    let mean = |b: Option<&str>, l: u8, k: usize| {
+        let v = per_map(rep, b, Experiment::Placeholders, l, |g| g.accuracy[k]);
+        100.0 * v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    let best = |b: Option<&str>, l: u8| {
+        let k = best_baseline(rep, b, Experiment::Placeholders, l);
+        mean(b, l, k)
+    };
+    for c in &rep.ceiling {
+        let b = Some(c.building.as_str());
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            c.building,
+            c.placeholders,
+            100.0 * c.one_hop,
+            100.0 * c.two_hop,
+            mean(b, lo, TREES),
+            mean(b, lo, GRAPHSPN),
+            best(b, lo),
+            mean(b, hi, TREES),
+            best(b, hi),
+        );
+    }
+    if rep.ceiling.len() > 1 {
+        let maps: Vec<&(String, f64, f64)> = rep.ceiling.iter().flat_map(|c| &c.per_map).collect();
+        let k = maps.len().max(1) as f64;
+        let _ = writeln!(
+            s,
+            "| **all** | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            rep.ceiling.iter().map(|c| c.placeholders).sum::<usize>(),
+            100.0 * maps.iter().map(|m| m.1).sum::<f64>() / k,
+            100.0 * maps.iter().map(|m| m.2).sum::<f64>() / k,
+            mean(None, lo, TREES),
+            mean(None, lo, GRAPHSPN),
+            best(None, lo),
+            mean(None, hi, TREES),
+            best(None, hi),
+        );
     }
     s
 }
@@ -242,9 +323,12 @@ fn bp_convergence(rep: &Reproduction) -> String {
     let n = rep.graphs.len().max(1) as f64;
     let parts: Vec<String> = MRF_MODELS
         .iter()
-        .enumerate()
-        .map(|(i, &k)| {
-            let c = rep.graphs.iter().filter(|g| g.bp_converged[i]).count() as f64;
+        .map(|&k| {
+            let c = rep
+                .graphs
+                .iter()
+                .filter(|g| g.bp_converged.get(MODELS[k]).copied().unwrap_or(false))
+                .count() as f64;
             format!("{:.1}% ({})", 100.0 * c / n, MODELS[k])
         })
         .collect();
@@ -260,21 +344,9 @@ pub fn validation_markdown(vals: &[super::validate::Validation], seconds: f64) -
         "# Validation of every model's settings\n\nLeave-one-training-building-out, per \
          test building; the test building is never read. Run time {seconds:.1} s.\n\n"
     );
-    let _ = writeln!(
-        s,
-        "| Test building | GraphSPN | MRF-2 (tuned) | MRF-3 (tuned) |\n|---|---|---|---|"
-    );
-    for v in vals {
-        let st = &v.chosen;
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {} |",
-            v.test_building,
-            st.graphspn.label(),
-            st.mrf2.label(),
-            st.mrf3.label()
-        );
-    }
+    s.push_str(&settings_table(
+        vals.iter().map(|v| (v.test_building.as_str(), &v.chosen)),
+    ));
     let _ = writeln!(
         s,
         "\nWhat each option gives (validation score, %, averaged over the test buildings' \
@@ -285,6 +357,9 @@ pub fn validation_markdown(vals: &[super::validate::Validation], seconds: f64) -
     s.push_str(&validation_tables(vals, usize::MAX));
     s
 }
+
+/// The models whose settings validation chooses, in report order.
+const VALIDATED: [&str; 4] = ["Tree mixture", "GraphSPN", "MRF-2", "MRF-3"];
 
 /// Per validation: best score, sum of scores and number of settings with one option value.
 type OptionCell = (f64, f64, usize);
@@ -299,7 +374,7 @@ pub fn option_summary(vals: &[super::validate::Validation]) -> String {
         s,
         "| Model | Option | Value | best setting with it | mean of all settings with it |\n|---|---|---|---|---|"
     );
-    for model in ["GraphSPN", "MRF-2", "MRF-3"] {
+    for model in VALIDATED {
         // option -> value -> per validation (best, sum, count)
         let mut order: Vec<String> = Vec::new();
         let mut table: BTreeMap<(String, String), Vec<OptionCell>> = BTreeMap::new();
@@ -357,7 +432,7 @@ fn validation_tables(vals: &[super::validate::Validation], keep: usize) -> Strin
             s,
             "| Model | Setting | per fold | mean |\n|---|---|---|---|"
         );
-        for model in ["GraphSPN", "MRF-2", "MRF-3"] {
+        for model in VALIDATED {
             let mut c: Vec<_> = v.candidates.iter().filter(|c| c.model == model).collect();
             c.sort_by(|a, b| b.score.total_cmp(&a.score));
             let n = c.len();
@@ -388,23 +463,33 @@ fn validation_tables(vals: &[super::validate::Validation], keep: usize) -> Strin
     s
 }
 
-fn settings_section(rep: &Reproduction) -> String {
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "| Test building | GraphSPN | MRF-2 (tuned) | MRF-3 (tuned) |\n|---|---|---|---|"
+/// The chosen settings of every model, one row per test building.
+fn settings_table<'a>(
+    rows: impl Iterator<Item = (&'a str, &'a super::settings::ModelSettings)>,
+) -> String {
+    let mut s = String::from(
+        "| Test building | Tree mixture | GraphSPN | MRF-2 (tuned) | MRF-3 (tuned) |\n|---|---|---|---|---|\n",
     );
-    for b in &rep.buildings {
-        let st = &b.settings;
+    for (b, st) in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} |",
-            b.building,
+            "| {b} | {} | {} | {} | {} |",
+            st.trees.label(),
             st.graphspn.label(),
             st.mrf2.label(),
             st.mrf3.label()
         );
     }
+    s
+}
+
+fn settings_section(rep: &Reproduction) -> String {
+    let mut s = String::new();
+    s.push_str(&settings_table(
+        rep.buildings
+            .iter()
+            .map(|b| (b.building.as_str(), &b.settings)),
+    ));
     if !rep.validation.is_empty() {
         let _ = writeln!(
             s,
@@ -493,7 +578,7 @@ fn report_markdown(
     extra: &str,
 ) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# GraphSPN reproduction report\n");
+    let _ = writeln!(s, "# Semantic-map models on the COLD maps: results\n");
     let _ = writeln!(
         s,
         "Seed {}; {} test building(s); {} maps × {} rounds per building and level; \
@@ -518,6 +603,8 @@ fn report_markdown(
         "## Models and their settings\n\n\
          Every setting below was chosen by leave-one-training-building-out validation \
          on the test building's two training buildings only (`graphspn validate`). \
+         The tree mixture is a mixture of edge-covering spanning trees of the map with \
+         one learned pairwise potential, evaluated exactly (`treemix`). \
          The paper-style models are \"GraphSPN paper\" (`{}`: the paper's best 5 of 15 \
          decompositions, raw evidence, no temperature, the exact mixture's marginals) and \
          \"MRF-2 paper\" / \"MRF-3 paper\" (raw joint co-occurrence frequencies, raw evidence).\n",
@@ -528,16 +615,17 @@ fn report_markdown(
     let _ = writeln!(s, "## Test maps\n");
     let _ = writeln!(
         s,
-        "| Test building | Trained on | Test maps | GraphSPN training (s) |\n|---|---|---|---|"
+        "| Test building | Trained on | Test maps | GraphSPN training (s) | tree-mixture training (s) |\n|---|---|---|---|---|"
     );
     for b in &rep.buildings {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.2} |",
+            "| {} | {} | {} | {:.2} | {:.2} |",
             b.building,
             b.trained_on.join(", "),
             b.test_maps.join(", "),
-            b.train_seconds
+            b.train_seconds,
+            b.train_seconds_trees
         );
     }
     let _ = writeln!(
@@ -549,12 +637,7 @@ fn report_markdown(
          values); MRF-2 good at low noise and deteriorating quickly; MRF-3 worse than MRF-2.\n"
     );
     s.push_str(&accuracy_table(rep, Experiment::Classification, false));
-    let _ = writeln!(
-        s,
-        "\nPaired difference GraphSPN − the better tuned MRF of the cell (percentage points, \
-         per map then bootstrap over maps); an interval above 0 means GraphSPN wins:\n"
-    );
-    s.push_str(&paired_table(rep, Experiment::Classification));
+    s.push_str(&paired_tables(rep, Experiment::Classification));
     s.push('\n');
     s.push_str(&bp_convergence(rep));
     let _ = writeln!(
@@ -565,8 +648,8 @@ fn report_markdown(
          the paper's numbers (NL2 and NL5 only) beside ours (its MRFs beside our paper-style MRFs).\n"
     );
     s.push_str(&accuracy_table(rep, Experiment::Placeholders, true));
-    let _ = writeln!(s, "\nPaired difference GraphSPN − the better tuned MRF:\n");
-    s.push_str(&paired_table(rep, Experiment::Placeholders));
+    s.push_str(&paired_tables(rep, Experiment::Placeholders));
+    s.push_str(&ceiling_section(rep));
     if !rep.auc.is_empty() {
         let count = |set: NoveltySet, novel: bool| {
             rep.novelty
@@ -590,7 +673,7 @@ fn report_markdown(
             originals,
             count(NoveltySet::Paper, true),
             count(NoveltySet::Paper, false) - originals,
-            super::reproduce::LOCAL_REGIONS,
+            LOCAL_REGIONS,
             count(NoveltySet::Local, true),
             count(NoveltySet::Local, false),
         );
@@ -604,7 +687,7 @@ fn report_markdown(
             s,
             "| Model | pooled AUC, paper set | within-map, paper set | pooled AUC, local set | within-map, local set |\n|---|---|---|---|---|"
         );
-        let get = |v: &[(NoveltySet, [f64; NUM_MODELS])], set: NoveltySet, k: usize| {
+        let get = |v: &[(NoveltySet, Scores<f64>)], set: NoveltySet, k: usize| {
             v.iter()
                 .find(|(s, _)| *s == set)
                 .map(|(_, a)| a[k])
@@ -697,9 +780,10 @@ fn report_markdown(
          intervals). `roc.svg`, `roc_local.svg`: novelty-detection ROC of the paper's \
          and of the local swaps. \
          `fig8_*.svg`: first test map at {fig_level} (ground truth; places whose \
-         evidence argmax is wrong in black; GraphSPN's labels; MRF-2's labels). \
-         `placeholders_*.svg`: GraphSPN's marginals of the placeholders (pies) at \
-         {pie_level}, explored places in their true class, wrong-evidence places in black.\n"
+         evidence argmax is wrong in black; the tree mixture's, GraphSPN's and MRF-2's \
+         labels). `placeholders_*.svg`: the tree mixture's and GraphSPN's marginals of \
+         the placeholders (pies) at {pie_level}, explored places in their true class, \
+         wrong-evidence places in black.\n"
     );
     for f in figures {
         let _ = writeln!(s, "- [{f}]({f})");
@@ -709,7 +793,8 @@ fn report_markdown(
         "\n## Generated code check\n\n\
          GraphSPN marginals above come from the instance GraphSPN evaluated component by \
          component on the host (`ComponentInstance`, tested against the interpreter to \
-         1e-9): each test map gets a model trained on the other buildings, so no \
+         1e-9), the tree mixture's from its exact host evaluator (`TreeInstance`, tested \
+         against brute force and the interpreter on its explicit SPN): each test map gets a model trained on the other buildings, so no \
          test map is a fixed, compiled one. The generated code applies to a map known at \
          build time; the check below (written by `graphspn reproduce`, empty when the \
          library is called directly) compares it with the interpreter on such a map.\n"
@@ -721,7 +806,7 @@ fn report_markdown(
 // ---------------------------------------------------------------- figures
 
 const MODEL_COLOURS: [&str; NUM_MODELS] = [
-    "#d62728", "#1f77b4", "#2ca02c", "#ff9896", "#9ecae1", "#a1d99b",
+    "#9467bd", "#d62728", "#1f77b4", "#2ca02c", "#ff9896", "#9ecae1", "#a1d99b",
 ];
 
 /// An SVG line chart frame: returns (svg prefix, x→px, y→px) for data in [x0,x1]×[0,1].
@@ -1039,16 +1124,23 @@ fn fig8_panel(
             },
         ),
         render_svg(
-            &relabel(map, &o.marginals[0]),
+            &relabel(map, &o.marginals[TREES]),
             &RenderOptions {
-                title: Some(format!("GraphSPN ({:.1}%)", 100.0 * acc[0])),
+                title: Some(format!("Tree mixture ({:.1}%)", 100.0 * acc[TREES])),
                 ..RenderOptions::default()
             },
         ),
         render_svg(
-            &relabel(map, &o.marginals[1]),
+            &relabel(map, &o.marginals[GRAPHSPN]),
             &RenderOptions {
-                title: Some(format!("MRF-2 tuned ({:.1}%)", 100.0 * acc[1])),
+                title: Some(format!("GraphSPN ({:.1}%)", 100.0 * acc[GRAPHSPN])),
+                ..RenderOptions::default()
+            },
+        ),
+        render_svg(
+            &relabel(map, &o.marginals[MRF2]),
+            &RenderOptions {
+                title: Some(format!("MRF-2 tuned ({:.1}%)", 100.0 * acc[MRF2])),
                 ..RenderOptions::default()
             },
         ),
@@ -1057,13 +1149,41 @@ fn fig8_panel(
 }
 
 fn pie_panel(map: &TopoMap, o: &super::reproduce::GraphOutcome, level: NoiseLevel) -> String {
+    let wrong = wrong_places(o);
+    let mut d = vec![render_svg(
+        map,
+        &RenderOptions {
+            title: Some(format!("{} ground truth (placeholders dashed)", map.name)),
+            ..RenderOptions::default()
+        },
+    )];
+    for k in [TREES, GRAPHSPN] {
+        let dists = placeholder_pies(map, &o.marginals[k]);
+        d.push(render_svg(
+            map,
+            &RenderOptions {
+                title: Some(format!(
+                    "{level}: {} placeholder marginals ({:.1}% correct)",
+                    MODELS[k],
+                    100.0 * o.result.accuracy[k]
+                )),
+                distributions: Some(&dists),
+                highlight: &wrong,
+                ..RenderOptions::default()
+            },
+        ));
+    }
+    compose_side_by_side(&d)
+}
+
+/// A pie per place: a placeholder's marginals, an explored place's true class.
+fn placeholder_pies(map: &TopoMap, marginals: &[Vec<f64>]) -> Vec<Vec<f64>> {
     let c = map.classes.len();
-    let dists: Vec<Vec<f64>> = map
-        .places()
+    map.places()
         .enumerate()
         .map(|(i, p)| {
             if p.placeholder {
-                o.marginals[0][i].clone()
+                marginals[i].clone()
             } else {
                 let mut v = vec![0.0; c];
                 if let Some(k) = p.class {
@@ -1072,28 +1192,5 @@ fn pie_panel(map: &TopoMap, o: &super::reproduce::GraphOutcome, level: NoiseLeve
                 v
             }
         })
-        .collect();
-    let wrong = wrong_places(o);
-    let d = [
-        render_svg(
-            map,
-            &RenderOptions {
-                title: Some(format!("{} ground truth (placeholders dashed)", map.name)),
-                ..RenderOptions::default()
-            },
-        ),
-        render_svg(
-            map,
-            &RenderOptions {
-                title: Some(format!(
-                    "{level}: GraphSPN placeholder marginals ({:.1}% correct)",
-                    100.0 * o.result.accuracy[0]
-                )),
-                distributions: Some(&dists),
-                highlight: &wrong,
-                ..RenderOptions::default()
-            },
-        ),
-    ];
-    compose_side_by_side(&d)
+        .collect()
 }

@@ -1,6 +1,7 @@
 //! The paper's experiments end to end (the `graphspn reproduce` command):
-//! for each test building, train GraphSPN, MRF-2 and MRF-3 on the other two
-//! buildings, then on `maps_per_building` seeded test maps × `rounds` evidence
+//! for each test building, train every model ([`super::models::MODELS`]: the tree
+//! mixture, GraphSPN, MRF-2 and MRF-3, validated, and the paper-style ones) on the
+//! other buildings, then on `maps_per_building` seeded test maps × `rounds` evidence
 //! rounds × every noise level measure
 //! - classification accuracy over all places (the paper's Fig. 5),
 //! - accuracy on placeholders given no evidence (Table 2),
@@ -20,87 +21,29 @@ use rand::seq::index::sample;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use thiserror::Error;
 
+use super::ceiling::{CeilingRow, placeholder_ceiling};
+pub use super::error::ReproduceError;
 use super::evidence::{
-    EvidenceSimError, LevelStats, NoiseLevel, SimulatedEvidence, WrongClassDraw, derive_seed,
-    level_statistics, map_truth, simulate_map_evidence_with,
+    LevelStats, NoiseLevel, SimulatedEvidence, WrongClassDraw, derive_seed, level_statistics,
+    map_truth, simulate_map_evidence_with,
 };
-use super::validate::{
-    DecompositionChoice, GraphSpnSetting, ModelSettings, MrfSetting, Validation, ValidationGrid,
-    validate_for,
+use super::models::{
+    MODELS, MRF_MODELS, NUM_MODELS, Scores, graphspn_marginals, mrf_marginals, tree_marginals,
 };
-use crate::decompose::{DecomposeError, decompose_best};
-use crate::instance::{ComponentInstance, InstanceQueryError};
-use crate::learn::{Model, Progress, TrainModelError, TrainingSettings, train_model};
+use super::novelty::{
+    NoveltyResult, NoveltySet, auc, novelty_labellings, novelty_points, within_map_auc,
+};
+use super::settings::{DecompositionChoice, GraphSpnSetting, ModelSettings, MrfSetting};
+use super::validate::{Validation, ValidationGrid, validate_for};
+use crate::decompose::decompose_best;
+use crate::instance::ComponentInstance;
+use crate::learn::{Model, Progress, TrainingSettings, train_model};
 pub use crate::map::stats::class_prior;
-use crate::map::{ClassId, MapError, TopoMap, cold};
-use crate::mrf::{BpOptions, BpResult, CooccurrenceParams, Mrf2, Mrf3, MrfError, MrfModel};
-use crate::template::{Adjacency, Template};
-
-/// Why a reproduction run failed.
-#[derive(Debug, Error)]
-pub enum ReproduceError {
-    /// Loading the maps failed.
-    #[error("loading building {building}: {source}")]
-    Load {
-        /// Building name.
-        building: String,
-        /// What failed.
-        source: MapError,
-    },
-    /// A configuration value is unusable.
-    #[error("bad configuration: {0}")]
-    Config(String),
-    /// Training GraphSPN failed.
-    #[error("training GraphSPN for test building {building}: {source}")]
-    Train {
-        /// Test building.
-        building: String,
-        /// What failed.
-        source: TrainModelError,
-    },
-    /// Training an MRF failed, or its inference failed.
-    #[error("MRF on {what}: {source}")]
-    Mrf {
-        /// Map / model.
-        what: String,
-        /// What failed.
-        source: MrfError,
-    },
-    /// Decomposing a test map failed.
-    #[error("decomposing test map {map}: {source}")]
-    Decompose {
-        /// Map name.
-        map: String,
-        /// What failed.
-        source: DecomposeError,
-    },
-    /// Building an instance GraphSPN, or inference in it, failed.
-    #[error("GraphSPN on {map}: {source}")]
-    Inference {
-        /// Map name.
-        map: String,
-        /// What failed.
-        source: InstanceQueryError,
-    },
-    /// Evidence simulation failed.
-    #[error("simulating evidence for {map}: {source}")]
-    Evidence {
-        /// Map name.
-        map: String,
-        /// What failed.
-        source: EvidenceSimError,
-    },
-    /// Writing an output file failed.
-    #[error("writing {path}: {source}")]
-    Io {
-        /// File.
-        path: String,
-        /// What failed.
-        source: std::io::Error,
-    },
-}
+use crate::map::{ClassId, TopoMap, cold};
+use crate::mrf::{BpOptions, CooccurrenceParams, Mrf2, Mrf3, MrfModel};
+use crate::template::Template;
+use crate::treemix::{NoiseFit, TreeInstance, TreeMixture, train_tree_mixture};
 
 /// What to run. [`ReproduceConfig::full`] is the paper's protocol,
 /// [`ReproduceConfig::quick`] a reduced smoke run.
@@ -195,27 +138,6 @@ pub enum Experiment {
     Placeholders,
 }
 
-/// Number of models compared.
-pub const NUM_MODELS: usize = 6;
-
-/// The models compared: GraphSPN and the MRFs with validated settings, then the
-/// paper-style models (GraphSPN with the paper's settings; MRFs from raw joint
-/// frequencies with the raw evidence). Indices 3.. are the paper-style ones.
-pub const MODELS: [&str; NUM_MODELS] = [
-    "GraphSPN",
-    "MRF-2",
-    "MRF-3",
-    "GraphSPN paper",
-    "MRF-2 paper",
-    "MRF-3 paper",
-];
-
-/// Indices into [`MODELS`] of the MRFs, in the order of [`GraphResult::bp_converged`].
-pub const MRF_MODELS: [usize; 4] = [1, 2, 4, 5];
-
-/// Index into [`MODELS`] of the first paper-style model.
-pub const FIRST_PAPER_MODEL: usize = 3;
-
 /// One test graph's result.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GraphResult {
@@ -233,43 +155,10 @@ pub struct GraphResult {
     pub scored: usize,
     /// Accuracy of the evidence's argmax alone (ties split evenly).
     pub evidence_only: f64,
-    /// Accuracy per model, in [`MODELS`] order (ties split evenly).
-    pub accuracy: [f64; NUM_MODELS],
-    /// Whether loopy BP converged, for the MRFs (in [`MRF_MODELS`] order).
-    pub bp_converged: [bool; 4],
-}
-
-/// One labelled map of the novelty experiment.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct NoveltyResult {
-    /// Test building.
-    pub building: String,
-    /// Map name.
-    pub map: String,
-    /// `original`, `1PO<->2PO`, `CR<->DW` or `CR<->1PO`, with ` local k` for the
-    /// local set.
-    pub variant: String,
-    /// The labelling set.
-    pub set: NoveltySet,
-    /// Whether the labelling counts as novel (the CR swaps).
-    pub novel: bool,
-    /// Number of variables (places).
-    pub variables: usize,
-    /// Log-likelihood per variable (natural log), in [`MODELS`] order.
-    pub score: [f64; NUM_MODELS],
-}
-
-impl NoveltyResult {
-    /// Whether this labelling is the map's original one.
-    pub fn is_original(&self) -> bool {
-        self.variant == ORIGINAL
-    }
-
-    /// Whether the labelling is scored in `set` (its own set; the original
-    /// labelling in both).
-    pub fn in_set(&self, set: NoveltySet) -> bool {
-        self.set == set || self.is_original()
-    }
+    /// Accuracy per model, by model name (ties split evenly).
+    pub accuracy: Scores<f64>,
+    /// Whether loopy BP converged, by MRF name ([`MRF_MODELS`]).
+    pub bp_converged: BTreeMap<String, bool>,
 }
 
 /// Per-building facts.
@@ -283,6 +172,9 @@ pub struct BuildingInfo {
     pub test_maps: Vec<String>,
     /// Seconds spent training GraphSPN.
     pub train_seconds: f64,
+    /// Seconds spent training the tree mixture (noise-aware fit included).
+    #[serde(default)]
+    pub train_seconds_trees: f64,
     /// The settings used (chosen by validation on the training buildings).
     pub settings: ModelSettings,
 }
@@ -304,11 +196,15 @@ pub struct Reproduction {
     pub novelty: Vec<NoveltyResult>,
     /// Per novelty set: the area under the ROC curve per model ([`MODELS`] order),
     /// pooled over maps and buildings (empty when novelty was not run).
-    pub auc: Vec<(NoveltySet, [f64; NUM_MODELS])>,
+    pub auc: Vec<(NoveltySet, Scores<f64>)>,
     /// Per novelty set, the within-map ranking: per model, the share of (novel,
     /// non-novel) labelling pairs of the same map that the model ranks correctly
     /// (ties ½), averaged over maps.
-    pub within_map: Vec<(NoveltySet, [f64; NUM_MODELS])>,
+    pub within_map: Vec<(NoveltySet, Scores<f64>)>,
+    /// Per test building: how well an oracle knowing every explored place's true class
+    /// labels the placeholders from their neighbourhood ([`super::ceiling`]).
+    #[serde(default)]
+    pub ceiling: Vec<CeilingRow>,
     /// Table 1 statistics of the evidence simulated on the test maps:
     /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
     pub table1: Vec<(u8, f64, f64, f64, f64)>,
@@ -324,6 +220,8 @@ pub struct BuildingSetup {
     pub model: Model,
     /// The paper-style GraphSPN model.
     pub model_paper: Model,
+    /// The tree mixture with validated settings.
+    pub trees: TreeMixture,
     /// Class shares of the training maps ([`class_prior`]).
     pub class_prior: Vec<f64>,
     /// MRF-2 with validated settings.
@@ -342,6 +240,8 @@ pub struct BuildingSetup {
     pub instances: Vec<ComponentInstance>,
     /// Per test map: the paper-style GraphSPN's instance.
     pub instances_paper: Vec<ComponentInstance>,
+    /// Per test map: the tree mixture's instance (no evidence set).
+    pub tree_instances: Vec<TreeInstance>,
     /// Facts for the report.
     pub info: BuildingInfo,
 }
@@ -404,6 +304,7 @@ const TAG_TRAIN: u64 = 2;
 const TAG_DECOMPOSE: u64 = 3;
 const TAG_EVIDENCE: u64 = 4;
 const TAG_NOVELTY: u64 = 6;
+const TAG_TREES: u64 = 7;
 /// Seed tag of the validation's random steps.
 pub(crate) const TAG_VALIDATE: u64 = 5;
 
@@ -448,6 +349,9 @@ pub fn setup_building(
     let class_prior = class_prior(&train_maps, model.classes.len());
     let train_seconds = t0.elapsed().as_secs_f64();
     let model_paper = train(&cfg.graphspn_paper)?;
+    let t1 = std::time::Instant::now();
+    let trees = train_trees(&train_maps, &settings.trees, cfg.seed, b, test_building)?;
+    let train_seconds_trees = t1.elapsed().as_secs_f64();
     let mrf = |source| ReproduceError::Mrf {
         what: format!("training for {test_building}"),
         source,
@@ -464,17 +368,24 @@ pub fn setup_building(
     };
     let instances = instances_of(&model, &settings.graphspn)?;
     let instances_paper = instances_of(&model_paper, &cfg.graphspn_paper)?;
+    let tree_instances = maps
+        .iter()
+        .enumerate()
+        .map(|(m, map)| tree_instance(&trees, map, cfg.seed, b, m as u64))
+        .collect::<Result<Vec<_>, _>>()?;
     let info = BuildingInfo {
         building: test_building.into(),
         trained_on,
         test_maps: maps.iter().map(|m| m.name.clone()).collect(),
         train_seconds,
+        train_seconds_trees,
         settings: settings.clone(),
     };
     Ok(BuildingSetup {
         building: test_building.into(),
         model,
         model_paper,
+        trees,
         class_prior,
         mrf2,
         mrf3,
@@ -484,8 +395,47 @@ pub fn setup_building(
         maps,
         instances,
         instances_paper,
+        tree_instances,
         info,
     })
+}
+
+/// The tree mixture of `settings` trained on `maps`, its noise-aware fit (if any)
+/// seeded by `(seed, TAG_TREES, b)`.
+pub(crate) fn train_trees(
+    maps: &[TopoMap],
+    settings: &crate::treemix::TreeTraining,
+    seed: u64,
+    b: u64,
+    what: &str,
+) -> Result<TreeMixture, ReproduceError> {
+    let mut s = settings.clone();
+    if let Some(fit) = &mut s.fit {
+        *fit = NoiseFit {
+            seed: derive_seed(seed, &[TAG_TREES, b]),
+            ..*fit
+        };
+    }
+    train_tree_mixture(maps, &s).map_err(|source| ReproduceError::Trees {
+        what: format!("training for {what}"),
+        source,
+    })
+}
+
+/// The tree-mixture instance of `map` (no evidence), its forests seeded by
+/// `(seed, TAG_DECOMPOSE, b, m)` like GraphSPN's decompositions.
+pub(crate) fn tree_instance(
+    model: &TreeMixture,
+    map: &TopoMap,
+    seed: u64,
+    b: u64,
+    m: u64,
+) -> Result<TreeInstance, ReproduceError> {
+    TreeInstance::with_covering_trees(model, map, derive_seed(seed, &[TAG_DECOMPOSE, b, m]))
+        .map_err(|source| ReproduceError::Trees {
+            what: map.name.clone(),
+            source,
+        })
 }
 
 /// `count` maps of `candidates` chosen at random (seeded by `(seed, tag, b)`),
@@ -559,8 +509,8 @@ pub struct GraphOutcome {
     pub result: GraphResult,
     /// The simulated evidence.
     pub evidence: SimulatedEvidence,
-    /// Marginals per model ([`MODELS`] order).
-    pub marginals: [Vec<Vec<f64>>; NUM_MODELS],
+    /// Marginals per model.
+    pub marginals: Scores<Vec<Vec<f64>>>,
 }
 
 /// Runs the three models on map `m` of `setup` at `level`, round `round`.
@@ -596,6 +546,7 @@ pub fn run_graph(
     let scored: Vec<usize> = (0..map.num_places())
         .filter(|&i| !placeholders || map.place(i).placeholder)
         .collect();
+    let t = tree_marginals(&setup.tree_instances[m], map, &ev.rows)?;
     let g = graphspn_marginals(
         &setup.instances[m],
         map,
@@ -615,6 +566,17 @@ pub fn run_graph(
     let paper = MrfSetting::paper(cfg.bp);
     let p2 = mrf_marginals(&setup.mrf2_paper, &paper, map, &ev.rows)?;
     let p3 = mrf_marginals(&setup.mrf3_paper, &paper, map, &ev.rows)?;
+    let converged = [r2.converged, r3.converged, p2.converged, p3.converged];
+    // In MODELS order.
+    let marginals = Scores([
+        t,
+        g,
+        r2.marginals,
+        r3.marginals,
+        gp,
+        p2.marginals,
+        p3.marginals,
+    ]);
     let result = GraphResult {
         building: setup.building.clone(),
         map: map.name.clone(),
@@ -623,234 +585,18 @@ pub fn run_graph(
         experiment,
         scored: scored.len(),
         evidence_only: accuracy(&ev.rows, &truth, &scored),
-        accuracy: [
-            accuracy(&g, &truth, &scored),
-            accuracy(&r2.marginals, &truth, &scored),
-            accuracy(&r3.marginals, &truth, &scored),
-            accuracy(&gp, &truth, &scored),
-            accuracy(&p2.marginals, &truth, &scored),
-            accuracy(&p3.marginals, &truth, &scored),
-        ],
-        bp_converged: [r2.converged, r3.converged, p2.converged, p3.converged],
+        accuracy: Scores::from_fn(|k| accuracy(&marginals[k], &truth, &scored)),
+        bp_converged: MRF_MODELS
+            .iter()
+            .zip(converged)
+            .map(|(&k, c)| (MODELS[k].to_string(), c))
+            .collect(),
     };
     Ok(GraphOutcome {
         result,
         evidence: ev,
-        marginals: [
-            g,
-            r2.marginals,
-            r3.marginals,
-            gp,
-            p2.marginals,
-            p3.marginals,
-        ],
+        marginals,
     })
-}
-
-/// Each row raised to `exponent` and renormalised (`exponent = 1`: unchanged).
-pub fn temper_rows(rows: &[Vec<f64>], exponent: f64) -> Vec<Vec<f64>> {
-    if exponent == 1.0 {
-        return rows.to_vec();
-    }
-    rows.iter()
-        .map(|r| {
-            let p: Vec<f64> = r.iter().map(|x| x.powf(exponent)).collect();
-            let s: f64 = p.iter().sum();
-            p.into_iter().map(|x| x / s).collect()
-        })
-        .collect()
-}
-
-/// The evidence rows GraphSPN is given: each row raised to `exponent`, multiplied
-/// by `prior^-beta` (class-prior correction; `beta = 0`: none) and renormalised.
-/// A place without evidence (a row of equal values) gets `prior^-beta`, so its
-/// classes are no longer ranked by how common they were in training alone.
-pub fn graphspn_rows(rows: &[Vec<f64>], exponent: f64, prior: &[f64], beta: f64) -> Vec<Vec<f64>> {
-    let tempered = temper_rows(rows, exponent);
-    if beta == 0.0 {
-        return tempered;
-    }
-    let factor: Vec<f64> = prior.iter().map(|p| p.powf(-beta)).collect();
-    tempered
-        .into_iter()
-        .map(|r| {
-            let p: Vec<f64> = r.iter().zip(&factor).map(|(x, f)| x * f).collect();
-            let s: f64 = p.iter().sum();
-            p.into_iter().map(|x| x / s).collect()
-        })
-        .collect()
-}
-
-/// GraphSPN marginals of `map` (its instance `instance`, with no evidence set) given
-/// evidence rows prepared by [`graphspn_rows`] with the setting's exponent and
-/// prior correction (`prior`: the training maps' [`class_prior`]), mixed as the
-/// setting says.
-pub fn graphspn_marginals(
-    instance: &ComponentInstance,
-    map: &TopoMap,
-    rows: &[Vec<f64>],
-    setting: &GraphSpnSetting,
-    prior: &[f64],
-) -> Result<Vec<Vec<f64>>, ReproduceError> {
-    let err = |source| ReproduceError::Inference {
-        map: map.name.clone(),
-        source,
-    };
-    let mut inst = instance.clone();
-    inst.set_all_evidence(&graphspn_rows(
-        rows,
-        setting.evidence_exponent,
-        prior,
-        setting.prior_correction,
-    ))
-    .map_err(err)?;
-    Ok(inst.marginals_mixed(setting.mixing).map_err(err)?.probs)
-}
-
-/// MRF marginals of `map` by loopy BP with the setting's evidence exponent and BP options.
-pub fn mrf_marginals(
-    model: &impl MrfModel,
-    setting: &MrfSetting,
-    map: &TopoMap,
-    rows: &[Vec<f64>],
-) -> Result<BpResult, ReproduceError> {
-    model
-        .infer(
-            map,
-            &temper_rows(rows, setting.evidence_exponent),
-            &setting.bp,
-        )
-        .map_err(|source| ReproduceError::Mrf {
-            what: map.name.clone(),
-            source,
-        })
-}
-
-/// The two labelling sets of the novelty experiment.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum NoveltySet {
-    /// The paper's: the original labelling and 1PO↔2PO (not novel), CR↔DW and
-    /// CR↔1PO over the whole map (novel).
-    Paper,
-    /// Harder: the same swaps inside one connected region covering a quarter of
-    /// the places ([`LOCAL_REGION_SHARE`]), [`LOCAL_REGIONS`] regions per swap;
-    /// scored together with the original labelling.
-    Local,
-}
-
-/// Name of the unswapped labelling, which belongs to both novelty sets.
-pub const ORIGINAL: &str = "original";
-
-/// Share of a map's places a local swap region covers.
-pub const LOCAL_REGION_SHARE: f64 = 0.25;
-
-/// Random regions per local swap and map.
-pub const LOCAL_REGIONS: usize = 3;
-
-/// The class swaps of the novelty experiment: `(name, novel, class a, class b)`.
-pub const NOVELTY_SWAPS: [(&str, bool, &str, &str); 3] = [
-    ("1PO<->2PO", false, "1PO", "2PO"),
-    ("CR<->DW", true, "CR", "DW"),
-    ("CR<->1PO", true, "CR", "1PO"),
-];
-
-/// One labelling of the novelty experiment.
-#[derive(Clone, Debug, PartialEq)]
-pub struct NoveltyLabelling {
-    /// E.g. `original`, `CR<->DW`, `CR<->DW local 2`.
-    pub name: String,
-    /// Its set.
-    pub set: NoveltySet,
-    /// Whether it counts as novel.
-    pub novel: bool,
-    /// A class per place.
-    pub labels: Vec<ClassId>,
-}
-
-/// `truth` with classes `a` and `b` exchanged at the places where `inside` holds.
-fn swap_where(
-    truth: &[ClassId],
-    a: ClassId,
-    b: ClassId,
-    inside: impl Fn(usize) -> bool,
-) -> Vec<ClassId> {
-    truth
-        .iter()
-        .enumerate()
-        .map(|(i, &t)| match t {
-            _ if !inside(i) => t,
-            t if t == a => b,
-            t if t == b => a,
-            t => t,
-        })
-        .collect()
-}
-
-/// A connected region grown breadth-first from `start` over `adj` until it holds
-/// `size` places (or its whole component).
-fn region_from(adj: &Adjacency, start: usize, size: usize) -> Vec<bool> {
-    let mut inside = vec![false; adj.num_places()];
-    let mut queue = std::collections::VecDeque::from([start]);
-    inside[start] = true;
-    let mut count = 1;
-    while let Some(u) = queue.pop_front() {
-        for &v in adj.neighbors(u) {
-            if count >= size {
-                return inside;
-            }
-            if !inside[v] {
-                inside[v] = true;
-                count += 1;
-                queue.push_back(v);
-            }
-        }
-    }
-    inside
-}
-
-/// The labellings of the novelty experiment for a map with ground truth `truth`:
-/// the paper's set, then the local set (regions seeded by `seed`). A swap whose
-/// classes the map's class set lacks, or that changes no place, is left out.
-pub fn novelty_labellings(map: &TopoMap, truth: &[ClassId], seed: u64) -> Vec<NoveltyLabelling> {
-    let adj = Adjacency::new(map);
-    let mut out = vec![NoveltyLabelling {
-        name: ORIGINAL.into(),
-        set: NoveltySet::Paper,
-        novel: false,
-        labels: truth.to_vec(),
-    }];
-    let size = ((LOCAL_REGION_SHARE * truth.len() as f64).ceil() as usize).max(1);
-    for (k, (name, novel, a, b)) in NOVELTY_SWAPS.iter().enumerate() {
-        let (Some(a), Some(b)) = (map.classes.index_of(a), map.classes.index_of(b)) else {
-            continue;
-        };
-        let swapped: Vec<usize> = (0..truth.len())
-            .filter(|&i| truth[i] == a || truth[i] == b)
-            .collect();
-        if swapped.is_empty() {
-            continue;
-        }
-        out.push(NoveltyLabelling {
-            name: name.to_string(),
-            set: NoveltySet::Paper,
-            novel: *novel,
-            labels: swap_where(truth, a, b, |_| true),
-        });
-        let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[k as u64]));
-        for r in 0..LOCAL_REGIONS {
-            // The region starts at a place the swap changes.
-            let start = swapped[rand::Rng::random_range(&mut rng, 0..swapped.len())];
-            let inside = region_from(&adj, start, size);
-            out.push(NoveltyLabelling {
-                name: format!("{name} local {}", r + 1),
-                set: NoveltySet::Local,
-                novel: *novel,
-                labels: swap_where(truth, a, b, |i| inside[i]),
-            });
-        }
-    }
-    out
 }
 
 /// Per-variable log-likelihoods of the novelty labellings of map `m`
@@ -891,8 +637,22 @@ pub fn run_novelty(
         source,
     };
     let all: Vec<Vec<ClassId>> = labellings.iter().map(|l| l.labels.clone()).collect();
+    let trees = labellings
+        .iter()
+        .map(|l| {
+            let fixed: Vec<Option<ClassId>> = l.labels.iter().map(|&c| Some(c)).collect();
+            setup.tree_instances[m]
+                .log_likelihood_labelled(&fixed)
+                .map_err(|source| ReproduceError::Trees {
+                    what: map.name.clone(),
+                    source,
+                })
+        })
+        .collect::<Result<Vec<f64>, _>>()?;
     let st = &setup.settings;
+    // In MODELS order.
     let scores: [Vec<f64>; NUM_MODELS] = [
+        trees,
         graphspn(&setup.instances[m])?,
         setup
             .mrf2
@@ -926,74 +686,9 @@ pub fn run_novelty(
             set: l.set,
             novel: l.novel,
             variables: map.num_places(),
-            score: std::array::from_fn(|k| scores[k][i] / n),
+            score: Scores::from_fn(|k| scores[k][i] / n),
         })
         .collect())
-}
-
-/// The `(score of model k, novel)` points of one novelty set: its labellings plus
-/// the original labellings (which belong to both sets).
-pub fn novelty_points(novelty: &[NoveltyResult], set: NoveltySet, k: usize) -> Vec<(f64, bool)> {
-    novelty
-        .iter()
-        .filter(|n| n.in_set(set))
-        .map(|n| (n.score[k], n.novel))
-        .collect()
-}
-
-/// ROC curve `(false-positive rate, true-positive rate)` points, from
-/// `(score, novel)` pairs where a LOW score means novel; starts at (0,0), ends at (1,1).
-pub fn roc_curve(points: &[(f64, bool)]) -> Vec<(f64, f64)> {
-    let pos = points.iter().filter(|p| p.1).count() as f64;
-    let neg = points.len() as f64 - pos;
-    let mut sorted: Vec<(f64, bool)> = points.to_vec();
-    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut curve = vec![(0.0, 0.0)];
-    let (mut tp, mut fp) = (0.0, 0.0);
-    let mut i = 0;
-    while i < sorted.len() {
-        let s = sorted[i].0;
-        while i < sorted.len() && sorted[i].0 == s {
-            if sorted[i].1 {
-                tp += 1.0;
-            } else {
-                fp += 1.0;
-            }
-            i += 1;
-        }
-        curve.push((
-            if neg > 0.0 { fp / neg } else { 0.0 },
-            if pos > 0.0 { tp / pos } else { 0.0 },
-        ));
-    }
-    curve
-}
-
-/// Area under the ROC curve (trapezoidal; equals the Mann–Whitney probability
-/// that a novel map scores lower than a non-novel one, ties counting ½).
-pub fn auc(points: &[(f64, bool)]) -> f64 {
-    let c = roc_curve(points);
-    c.windows(2)
-        .map(|w| (w[1].0 - w[0].0) * (w[1].1 + w[0].1) / 2.0)
-        .sum()
-}
-
-/// The within-map ranking measure of model `k` on one novelty set: for each map,
-/// the AUC of its own labellings of that set (novel vs not, the original included),
-/// averaged over the maps that have both kinds.
-pub fn within_map_auc(novelty: &[NoveltyResult], set: NoveltySet, k: usize) -> f64 {
-    let mut maps: BTreeMap<(&str, &str), Vec<(f64, bool)>> = BTreeMap::new();
-    for n in novelty.iter().filter(|n| n.in_set(set)) {
-        maps.entry((n.building.as_str(), n.map.as_str()))
-            .or_default()
-            .push((n.score[k], n.novel));
-    }
-    let per: Vec<f64> = maps
-        .values()
-        .filter(|p| p.iter().any(|x| x.1) && p.iter().any(|x| !x.1))
-        .map(|p| auc(p))
-        .collect();
-    per.iter().sum::<f64>() / per.len().max(1) as f64
 }
 
 /// Loads every building's maps.
@@ -1086,9 +781,8 @@ pub fn run(
         bar.finish_and_clear();
         novelty = per.into_iter().flatten().collect();
         for set in [NoveltySet::Paper, NoveltySet::Local] {
-            let a: [f64; NUM_MODELS] =
-                std::array::from_fn(|k| auc(&novelty_points(&novelty, set, k)));
-            let w: [f64; NUM_MODELS] = std::array::from_fn(|k| within_map_auc(&novelty, set, k));
+            let a = Scores::from_fn(|k| auc(&novelty_points(&novelty, set, k)));
+            let w = Scores::from_fn(|k| within_map_auc(&novelty, set, k));
             auc_v.push((set, a));
             within.push((set, w));
         }
@@ -1120,8 +814,21 @@ pub fn run(
             ));
         }
     }
+    let ceiling = setups
+        .iter()
+        .map(|s| {
+            let train: Vec<TopoMap> = s
+                .info
+                .trained_on
+                .iter()
+                .flat_map(|k| all[k].iter().cloned())
+                .collect();
+            placeholder_ceiling(&s.building, &train, &s.maps)
+        })
+        .collect();
     let rep = Reproduction {
         seed: cfg.seed,
+        ceiling,
         paper_noise: cfg.wrong_draw == WrongClassDraw::AnyClass,
         validation,
         buildings: setups.iter().map(|s| s.info.clone()).collect(),

@@ -33,5 +33,6 @@ mod query;
 pub use crate::spn::Mixing;
 pub use build::{CopyStats, Instance, InstanceError, InstanceParams};
 pub use components::{ComponentInstance, estimated_component_bytes, estimated_explicit_bytes};
+pub use export::{spn_dot, tree_instance_json};
 pub use grow::grow_decompositions;
 pub use query::{InstanceModel, InstanceQueryError};

@@ -33,6 +33,9 @@ pub struct RenderOptions<'a> {
     pub templates: Option<&'a [Template]>,
     /// Place indices to highlight (drawn black), e.g. places with wrong evidence.
     pub highlight: &'a [usize],
+    /// Edges `(a, b)` (place indices) of a spanning tree of a tree mixture, drawn
+    /// thicker in dark blue.
+    pub tree: Option<&'a [(u32, u32)]>,
 }
 
 impl Default for RenderOptions<'_> {
@@ -45,6 +48,7 @@ impl Default for RenderOptions<'_> {
             decomposition: None,
             templates: None,
             highlight: &[],
+            tree: None,
         }
     }
 }
@@ -127,6 +131,18 @@ pub fn check_options(map: &TopoMap, opts: &RenderOptions) -> Result<(), RenderEr
                 });
             }
         }
+    }
+    if let Some(&(a, b)) = opts
+        .tree
+        .unwrap_or(&[])
+        .iter()
+        .find(|&&(a, b)| a as usize >= n || b as usize >= n)
+    {
+        return Err(RenderError::PlaceOutOfRange {
+            what: "the tree's edges",
+            index: a.max(b) as usize,
+            places: n,
+        });
     }
     if let Some(&i) = opts.highlight.iter().find(|&&i| i >= n) {
         return Err(RenderError::PlaceOutOfRange {
@@ -331,11 +347,19 @@ fn draw(map: &TopoMap, opts: &RenderOptions, warning: Option<&str>) -> String {
 
     // Edges.
     let _ = writeln!(o, r#"<g id="edges" stroke-linecap="round">"#);
+    let tree_edges: std::collections::BTreeSet<(usize, usize)> = opts
+        .tree
+        .unwrap_or(&[])
+        .iter()
+        .map(|&(a, b)| ((a.min(b)) as usize, (a.max(b)) as usize))
+        .collect();
     for (a, b) in map.edge_list() {
         let (p, q) = (map.place(a), map.place(b));
         let inside =
             opts.decomposition.is_some() && comp_of[a] != usize::MAX && comp_of[a] == comp_of[b];
-        let (stroke, w, class) = if inside {
+        let (stroke, w, class) = if tree_edges.contains(&(a, b)) {
+            ("#1f3a93".to_string(), r * 0.35, "edge tree-edge")
+        } else if inside {
             (
                 template_colour(templ_of[a]),
                 r * 0.45,

@@ -34,10 +34,13 @@
 //! - [`trees`]: the edge-covering spanning forests of a map ([`SpanningTrees`]);
 //! - [`train`](mod@train) *(host)*: potentials from co-occurrence counts ([`TreeTraining`]);
 //! - [`exact`] *(host)*: exact inference in `f64` ([`TreeInstance`]);
+//! - [`fit`] *(host)*: noise-aware training of the potentials ([`fit_potentials`]);
 //! - [`spn`] *(host)*: the explicit instance SPN, the interpreter's reference.
 
 #[cfg(feature = "host")]
 pub mod exact;
+#[cfg(feature = "host")]
+pub mod fit;
 pub mod model;
 #[cfg(feature = "host")]
 pub mod spn;
@@ -47,11 +50,13 @@ pub mod trees;
 
 #[cfg(feature = "host")]
 pub use exact::{TreeInstance, TreeMarginals};
-pub use model::TreeMixture;
+#[cfg(feature = "host")]
+pub use fit::{FitGraph, FitOptions, FitReport, fit_potentials};
+pub use model::{MAX_TREES, TreeMixture};
 #[cfg(feature = "host")]
 pub use spn::instance_spn;
 #[cfg(feature = "host")]
-pub use train::{TreeTraining, train_tree_mixture};
+pub use train::{NoiseFit, TreeTraining, train_tree_mixture};
 pub use trees::{NO_PARENT, RootedForest, SpanningTrees};
 
 use graphspn_runtime::EvidenceError;

@@ -5,12 +5,16 @@
 use serde::{Deserialize, Serialize};
 
 use super::TreeMixError;
+use super::fit::{FitGraph, FitOptions, fit_potentials};
 use super::model::TreeMixture;
+use super::trees::SpanningTrees;
 use crate::family::ModelFamily;
 use crate::learn::model::MODEL_FORMAT;
+use crate::map::ClassId;
 use crate::map::TopoMap;
 use crate::map::stats::class_prior;
 use crate::mrf::{CooccurrenceParams, Mrf2, Normalisation};
+use crate::noise::{NoiseLevel, derive_seed, map_truth, simulate_map_evidence};
 use crate::spn::Mixing;
 
 /// How a tree mixture is trained; stored in the model file's `settings`.
@@ -29,6 +33,23 @@ pub struct TreeTraining {
     pub trees: usize,
     /// How the trees' marginals are combined.
     pub mixing: Mixing,
+    /// Noise-aware fitting of the counted potentials (none: the counted ones).
+    pub fit: Option<NoiseFit>,
+}
+
+/// Noise-aware fitting of a tree mixture's potentials on the training maps
+/// ([`super::fit`]): every training map with evidence simulated by the paper's noise
+/// model ([`crate::noise`]) at every noise level, with and without evidence on
+/// placeholders, `rounds` times each.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseFit {
+    /// Penalty weight `λ` ([`FitOptions::penalty`]; finite, > 0).
+    pub penalty: f64,
+    /// Evidence rounds per map, level and placeholder setting (≥ 1).
+    pub rounds: usize,
+    /// Seed of the simulated evidence and the training maps' forests.
+    pub seed: u64,
 }
 
 impl Default for TreeTraining {
@@ -45,22 +66,31 @@ impl Default for TreeTraining {
             evidence_exponent: 2,
             trees: 4,
             mixing: Mixing::Average,
+            fit: None,
         }
     }
 }
 
 impl TreeTraining {
-    /// Short description, e.g. `normalised^1, ρ=0, ev^2, 4 trees, average`.
+    /// Short description, e.g. `normalised^1, ρ=0, ev^2, 4 trees, average, fit λ=0.001`.
     pub fn label(&self) -> String {
         format!(
-            "{}^{}, ρ={}, ev^{}, {} trees, {}",
+            "{}^{}, ρ={}, ev^{}, {} trees, {}, {}",
             self.potentials.normalisation.name(),
             self.potentials.coupling,
             self.prior_exponent,
             self.evidence_exponent,
             self.trees,
-            self.mixing.name()
+            self.mixing.name(),
+            self.fit_label()
         )
+    }
+
+    fn fit_label(&self) -> String {
+        match &self.fit {
+            Some(f) => format!("fit λ={}", f.penalty),
+            None => "counted".into(),
+        }
     }
 
     /// The settings as `(option, value)` pairs.
@@ -78,13 +108,15 @@ impl TreeTraining {
             ),
             ("trees".into(), self.trees.to_string()),
             ("mixing".into(), self.mixing.name().into()),
+            ("potentials fitted".into(), self.fit_label()),
         ]
     }
 }
 
 /// Trains a tree mixture on `maps` (every map must use the same classes; places
-/// without a class are skipped when counting). The result passes
-/// [`TreeMixture::check`]; errors say what is wrong.
+/// without a class are skipped when counting; with `fit`, maps with an unannotated
+/// place are left out of the fit). The result passes [`TreeMixture::check`]; errors
+/// say what is wrong.
 pub fn train_tree_mixture(
     maps: &[TopoMap],
     settings: &TreeTraining,
@@ -117,5 +149,65 @@ pub fn train_tree_mixture(
     model
         .check("<trained model>")
         .map_err(|e| TreeMixError::Model(e.to_string()))?;
-    Ok(model)
+    match &settings.fit {
+        None => Ok(model),
+        Some(fit) => fit_on_simulated_evidence(model, maps, fit),
+    }
+}
+
+/// [`fit_potentials`] on every annotated map of `maps` with simulated evidence.
+fn fit_on_simulated_evidence(
+    model: TreeMixture,
+    maps: &[TopoMap],
+    fit: &NoiseFit,
+) -> Result<TreeMixture, TreeMixError> {
+    if fit.rounds == 0 {
+        return Err(TreeMixError::Model("fit rounds must be at least 1".into()));
+    }
+    let annotated: Vec<(usize, &TopoMap, Vec<ClassId>)> = maps
+        .iter()
+        .enumerate()
+        .filter_map(|(i, m)| map_truth(m).ok().map(|t| (i, m, t)))
+        .collect();
+    let trees = annotated
+        .iter()
+        .map(|(i, m, _)| {
+            SpanningTrees::covering(m, model.trees, derive_seed(fit.seed, &[*i as u64]))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut graphs = Vec::new();
+    for ((i, map, truth), trees) in annotated.iter().zip(&trees) {
+        let has_placeholders = map.places().any(|p| p.placeholder);
+        for level in NoiseLevel::all() {
+            for placeholders in [false, true] {
+                if placeholders && !has_placeholders {
+                    continue;
+                }
+                for r in 0..fit.rounds {
+                    let seed = derive_seed(
+                        fit.seed,
+                        &[
+                            *i as u64,
+                            u64::from(level.get()),
+                            placeholders as u64,
+                            r as u64,
+                        ],
+                    );
+                    let ev = simulate_map_evidence(map, level, placeholders, seed)
+                        .map_err(|e| TreeMixError::Model(format!("simulating evidence: {e}")))?;
+                    graphs.push(FitGraph {
+                        map,
+                        trees,
+                        rows: ev.rows,
+                        truth: truth.clone(),
+                    });
+                }
+            }
+        }
+    }
+    let opts = FitOptions {
+        penalty: fit.penalty,
+        ..FitOptions::default()
+    };
+    Ok(fit_potentials(&model, &graphs, &opts)?.0)
 }

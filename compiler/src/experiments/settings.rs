@@ -1,0 +1,206 @@
+//! The settings of every compared model (what validation chooses and
+//! `graphspn validate` saves): GraphSPN's, each tuned MRF's and the tree mixture's.
+
+use serde::{Deserialize, Serialize};
+
+use crate::decompose::{DecompositionParams, DecompositionStrategy};
+use crate::learn::TrainingSettings;
+use crate::mrf::{BpOptions, CooccurrenceParams, Schedule};
+use crate::spn::Mixing;
+use crate::treemix::TreeTraining;
+
+/// Settings of one MRF baseline.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MrfSetting {
+    /// How potentials are made from the training counts.
+    pub potentials: CooccurrenceParams,
+    /// Each evidence row is raised to this power and renormalised before inference.
+    pub evidence_exponent: f64,
+    /// Loopy BP options.
+    pub bp: BpOptions,
+}
+
+impl MrfSetting {
+    /// The paper-style MRF: raw joint frequencies, coupling 1, raw evidence.
+    pub fn paper(bp: BpOptions) -> Self {
+        MrfSetting {
+            potentials: CooccurrenceParams::default(),
+            evidence_exponent: 1.0,
+            bp,
+        }
+    }
+
+    /// The BP schedule, e.g. `sequential` or `flooding d=0.5`.
+    fn bp_label(&self) -> String {
+        let schedule = match self.bp.schedule {
+            Schedule::Sequential => "sequential",
+            Schedule::Parallel => "flooding",
+        };
+        if self.bp.damping > 0.0 {
+            format!("{schedule} d={}", self.bp.damping)
+        } else {
+            schedule.to_string()
+        }
+    }
+
+    /// The setting as `(option, value)` pairs: potentials, coupling, evidence, BP.
+    pub fn options(&self) -> Vec<(String, String)> {
+        vec![
+            (
+                "potentials".into(),
+                self.potentials.normalisation.name().into(),
+            ),
+            ("coupling".into(), self.potentials.coupling.to_string()),
+            (
+                "evidence exponent".into(),
+                self.evidence_exponent.to_string(),
+            ),
+            ("BP".into(), self.bp_label()),
+        ]
+    }
+
+    /// Short description, e.g. `normalised^0.3, ev^1, sequential`.
+    pub fn label(&self) -> String {
+        format!(
+            "{}^{}, ev^{}, {}",
+            self.potentials.normalisation.name(),
+            self.potentials.coupling,
+            self.evidence_exponent,
+            self.bp_label()
+        )
+    }
+}
+
+/// Which decompositions an instance GraphSPN mixes: how they are drawn, how many
+/// are kept and of how many candidates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DecompositionChoice {
+    /// How candidates are drawn and ranked.
+    pub strategy: DecompositionStrategy,
+    /// Decompositions kept (the instance's D).
+    pub count: usize,
+    /// Candidates drawn.
+    pub candidates: usize,
+}
+
+impl Default for DecompositionChoice {
+    /// The paper's: the best 5 of 15 random partitions.
+    fn default() -> Self {
+        DecompositionChoice {
+            strategy: DecompositionStrategy::Paper,
+            count: 5,
+            candidates: 15,
+        }
+    }
+}
+
+impl DecompositionChoice {
+    /// `strategy`, `count` of `candidates`.
+    pub fn new(strategy: DecompositionStrategy, count: usize, candidates: usize) -> Self {
+        DecompositionChoice {
+            strategy,
+            count,
+            candidates,
+        }
+    }
+
+    /// The parameters of [`crate::decompose::decompose_best`] with `seed`.
+    pub fn params(&self, seed: u64) -> DecompositionParams {
+        DecompositionParams {
+            count: self.count,
+            candidates: self.candidates,
+            seed,
+            strategy: self.strategy,
+        }
+    }
+
+    /// Short description, e.g. `cover 20/60`.
+    pub fn label(&self) -> String {
+        format!(
+            "{} {}/{}",
+            self.strategy.name(),
+            self.count,
+            self.candidates
+        )
+    }
+}
+
+/// Settings of GraphSPN.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GraphSpnSetting {
+    /// Name of the training variant (template structure).
+    pub variant: String,
+    /// Training settings (the seed is replaced per building); `training.temperature`
+    /// is the template temperature.
+    pub training: TrainingSettings,
+    /// Each evidence row is raised to this power and renormalised before inference.
+    pub evidence_exponent: f64,
+    /// The decompositions of each test map's instance.
+    #[serde(default)]
+    pub decompositions: DecompositionChoice,
+    /// How the decompositions' marginals are combined.
+    #[serde(default)]
+    pub mixing: Mixing,
+    /// Class-prior correction β: evidence rows are multiplied by `prior^-β` (the
+    /// training maps' class shares; see [`super::reproduce::graphspn_rows`]). 0 = none.
+    #[serde(default)]
+    pub prior_correction: f64,
+}
+
+impl GraphSpnSetting {
+    /// The paper's GraphSPN: default training (our symmetric Star), raw evidence,
+    /// the best 5 of 15 decompositions, the exact mixture's marginals.
+    pub fn paper() -> Self {
+        GraphSpnSetting {
+            variant: "most_images".into(),
+            training: TrainingSettings::default(),
+            evidence_exponent: 1.0,
+            decompositions: DecompositionChoice::default(),
+            mixing: Mixing::Posterior,
+            prior_correction: 0.0,
+        }
+    }
+
+    /// The setting as `(option, value)` pairs: structure, temperature, evidence
+    /// exponent, decompositions, mixing.
+    pub fn options(&self) -> Vec<(String, String)> {
+        vec![
+            ("structure".into(), self.variant.clone()),
+            ("temperature".into(), self.training.temperature.to_string()),
+            (
+                "evidence exponent".into(),
+                self.evidence_exponent.to_string(),
+            ),
+            ("prior correction".into(), self.prior_correction.to_string()),
+            ("decompositions".into(), self.decompositions.label()),
+            ("mixing".into(), self.mixing.name().into()),
+        ]
+    }
+
+    /// Short description, e.g. `most_images, τ=0.8, ev^2, β=0.25, cover 20/60, average`.
+    pub fn label(&self) -> String {
+        format!(
+            "{}, τ={}, ev^{}, β={}, {}, {}",
+            self.variant,
+            self.training.temperature,
+            self.evidence_exponent,
+            self.prior_correction,
+            self.decompositions.label(),
+            self.mixing.name()
+        )
+    }
+}
+
+/// The settings of every model for one test building.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ModelSettings {
+    /// GraphSPN.
+    pub graphspn: GraphSpnSetting,
+    /// The tuned MRF-2.
+    pub mrf2: MrfSetting,
+    /// The tuned MRF-3.
+    pub mrf3: MrfSetting,
+    /// The tree mixture (its training settings; the fit's seed is replaced per
+    /// building).
+    pub trees: TreeTraining,
+}
