@@ -18,6 +18,7 @@
 //! | [`mrf`] | Markov random field baselines with loopy belief propagation |
 //! | [`noise`] | the paper's simulation of noisy local evidence (noise levels 1–6) |
 //! | [`experiments`] | the paper's experiments: validation, reproduction, report |
+//! | [`progress`] | progress of long steps on standard error: bars on a terminal, plain lines elsewhere |
 //!
 //! Features: `host` (default) is everything; `codegen` alone is code generation and
 //! the loading it needs (maps, models, decompositions) — what a firmware's `build.rs`
@@ -49,6 +50,9 @@ pub mod mrf;
 #[cfg(feature = "host")]
 pub mod noise;
 mod par;
+/// *(host)*
+#[cfg(feature = "host")]
+pub mod progress;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod render;

@@ -22,11 +22,8 @@
 //! value of the sample's max-product (MPE) tree (hard EM) or the SPN value (soft
 //! EM). The M-step is `w_e ∝ count_e + s`.
 
-use std::collections::BTreeMap;
-use std::io::IsTerminal;
-
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
+use std::collections::BTreeMap;
 
 use super::settings::{EmKind, TrainingSettings};
 use super::symmetry::{EdgeOrbits, order_free_sum, set_normalised, sum_edge_offsets};
@@ -36,32 +33,8 @@ use crate::spn::{Node, NodeId, Spn};
 // Shared with `symmetry` (sample checks), so it lives in `settings`, below both.
 pub use super::settings::TrainError;
 
-/// Whether to draw a progress bar.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Progress {
-    /// A bar on stderr when it is a terminal and `CI` is not set.
-    Auto,
-    /// Never draw.
-    Hidden,
-}
-
-impl Progress {
-    /// A progress bar of `len` steps, hidden unless drawing makes sense.
-    pub fn bar(self, len: u64, what: &str) -> ProgressBar {
-        let show = self == Progress::Auto
-            && std::io::stderr().is_terminal()
-            && std::env::var_os("CI").is_none();
-        if !show {
-            return ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
-        }
-        let bar = ProgressBar::new(len);
-        if let Ok(style) = ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg}") {
-            bar.set_style(style);
-        }
-        bar.set_prefix(what.to_string());
-        bar
-    }
-}
+/// Progress reporting, shared by every long step ([`crate::progress`]).
+pub use crate::progress::Progress;
 
 /// What training did, per epoch. Log-likelihoods are natural logs, averaged over
 /// the samples given (with multiplicity).
