@@ -6,7 +6,8 @@
 //! measured in this run, and for marginals also against the interpreter's batched mode
 //! (`marginals_batch`, time per query). Also the streaming state: one `observe` plus
 //! `marginals` of all places (or `marginal` of one place) vs one stateless
-//! `marginals` call.
+//! `marginals` call, and that step's cost after 10^6 random observations vs on a fresh
+//! state (it must stay flat: fused rows neither underflow nor turn subnormal).
 //!
 //! `cargo bench --bench generated_vs_interpreter`
 
@@ -20,6 +21,8 @@ use graphspn::instance::Instance;
 use graphspn::interpreter::{BATCH, Evaluator, Evidence};
 use graphspn::spn::Spn;
 use graphspn::treemix::{TreeInstance, instance_spn};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 
 /// The explicit instance SPN of model file `model` on demo map `file` (as
 /// `generated/build.rs` compiles them: 5 seeded decompositions, or the tree mixture's
@@ -112,15 +115,7 @@ macro_rules! bench_map {
         });
         group.finish();
         // Ratios from one timing pass each, same process.
-        let time = |f: &mut dyn FnMut()| {
-            let start = Instant::now();
-            let mut n = 0u32;
-            while start.elapsed() < Duration::from_millis(300) {
-                f();
-                n += 1;
-            }
-            start.elapsed().as_secs_f64() / f64::from(n)
-        };
+        let time = |f: &mut dyn FnMut()| time_for(300, f);
         let gl = time(&mut || {
             black_box(g::log_likelihood(black_box(&e)).ok());
         });
@@ -154,13 +149,45 @@ macro_rules! bench_map {
             let _ = state.observe(step, black_box(&e[(step * 7) % g::NUM_PLACES]));
             black_box(state.marginal(step, &mut one).ok());
         });
+        // The step cost stays flat over a long run: one `observe` of a random row plus
+        // `marginals`, timed on a fresh state and again after 10^6 random observations
+        // (where renormalised fused rows would be subnormal or locked at 0).
+        let mut rng = StdRng::seed_from_u64(24);
+        let mut long = g::State::new();
+        long.set_all(&e).unwrap();
+        let mut random_step = |s: &mut g::State, marginals: bool| {
+            let p = rng.random_range(0..g::NUM_PLACES);
+            let mut row = [0.0f32; g::NUM_CLASSES];
+            for x in row.iter_mut() {
+                *x = rng.random_range(1e-3f32..1.0);
+            }
+            let _ = s.observe(p, black_box(&row));
+            if marginals {
+                black_box(s.marginals(&mut out).ok());
+            }
+        };
+        let fresh = long.clone();
+        for _ in 0..1_000_000 {
+            random_step(&mut long, false);
+        }
+        // Interleaved rounds (this machine's load drifts), the median of each.
+        let (mut first, mut after) = (vec![], vec![]);
+        for _ in 0..9 {
+            let mut s = fresh.clone();
+            first.push(time_for(30, &mut || random_step(&mut s, true)));
+            after.push(time_for(30, &mut || random_step(&mut long, true)));
+        }
+        let (first, after) = (median(first), median(after));
         $ratios.push(format!(
-            "{name} streaming state ({} bytes): observe + marginals {:.2} µs ({:.1}x faster than stateless marginals), observe + marginal(place) {:.2} µs ({:.1}x)",
+            "{name} streaming state ({} bytes): observe + marginals {:.2} µs ({:.1}x faster than stateless marginals), observe + marginal(place) {:.2} µs ({:.1}x); observe + marginals after 10^6 random observations {:.2} µs vs {:.2} µs fresh ({:+.1}%)",
             g::STATE_BYTES,
             so * 1e6,
             gm / so,
             s1 * 1e6,
-            gm / s1
+            gm / s1,
+            after * 1e6,
+            first * 1e6,
+            (after / first - 1.0) * 100.0
         ));
         $ratios.push(format!(
             "{name} ({} places, {} instance edges): log_likelihood {:.1} µs vs {:.1} µs ({:.1}x), marginals {:.1} µs vs {:.1} µs ({:.1}x), mpe {:.1} µs vs {:.1} µs ({:.1}x); interpreter marginals batched by {BATCH}: {:.1} µs per query ({:.1}x)",
@@ -179,6 +206,23 @@ macro_rules! bench_map {
             im8 / gm
         ));
     }};
+}
+
+/// Seconds per call of `f`, called for `ms` milliseconds.
+fn time_for(ms: u64, f: &mut dyn FnMut()) -> f64 {
+    let start = Instant::now();
+    let mut n = 0u32;
+    while start.elapsed() < Duration::from_millis(ms) {
+        f();
+        n += 1;
+    }
+    start.elapsed().as_secs_f64() / f64::from(n)
+}
+
+/// The median of `v` (upper middle for an even count).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
 
 fn main() {

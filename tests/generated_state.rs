@@ -81,14 +81,19 @@ where
         let ll: f64 = M::state_log_likelihood(&mut t).expect("state ll").into();
         let ev: Vec<M::Row> = M::state_evidence(&t).to_vec();
         let m = first.as_ref().iter().map(|&x| Into::<f64>::into(x)).fold(0.0, f64::max);
+        let top = ev[p].as_ref().iter().map(|&x| Into::<f64>::into(x)).fold(0.0, f64::max);
         for (q, r) in ev.iter().enumerate() {
             for (k, &a) in r.as_ref().iter().enumerate() {
                 let want = if q == p { Into::<f64>::into(first.as_ref()[k]) / m } else { 1.0 };
-                assert!((Into::<f64>::into(a) - want).abs() <= 1e-6, "{name}: first observe: place {q} class {k}: {} vs {want}", Into::<f64>::into(a));
+                let got = if q == p { Into::<f64>::into(a) / top } else { Into::<f64>::into(a) };
+                assert!((got - want).abs() <= 1e-6, "{name}: first observe: place {q} class {k}: {got} vs {want}");
             }
         }
-        let sl: f64 = M::log_likelihood(&ev).expect("stateless ll").into();
-        assert!(close(ll, sl, tol), "{name}: first observe on a new state: {ll} vs stateless {sl}");
+        // The fused row is the observation scaled by a power of two; the state's
+        // log-likelihood is that of the observation itself.
+        assert_eq!((top / m).log2().fract(), 0.0, "{name}: first observe: scaled by {}", top / m);
+        let sl: f64 = Into::<f64>::into(M::log_likelihood(&ev).expect("stateless ll")) + f64::from(M::EVIDENCE_EXPONENT) * (m / top).ln();
+        assert!(close(ll, sl, tol), "{name}: first observe on a new state: {ll} vs {sl}");
     }
     let mut s = M::NEW_STATE;
     let mut marg = vec![M::ZERO_ROW; n];
@@ -96,6 +101,9 @@ where
     let mut lab = vec![0u16; n];
     let mut row = M::ZERO_ROW;
     let (mut rejected, mut snapshots) = (0usize, 0usize);
+    // Per place and class `ln` of the evidence the state must hold: the row last set,
+    // times every observation since, in f64.
+    let mut fused = vec![vec![0.0f64; c]; n];
     let mut evs: Vec<u8> = Vec::new();
     let mut out: Vec<u8> = Vec::new();
     for step in 0..steps {
@@ -129,17 +137,33 @@ where
             continue;
         }
         r.unwrap_or_else(|e| panic!("{name} step {step}: update failed: {e}"));
+        for (k, l) in fused[p].iter_mut().enumerate() {
+            let x: f64 = row.as_ref()[k].into();
+            match op {
+                0 => *l = x.ln(),
+                1 => *l += x.ln(),
+                _ => *l = 0.0,
+            }
+        }
         let last = step + 1 == steps;
         if !(last || step < 1000 || step % 1000 == 0) { continue; }
         let ll = M::state_log_likelihood(&mut s).expect("state ll").into();
         M::state_marginals(&mut s, &mut marg).expect("state marginals");
         let mv: f64 = M::state_mpe(&mut s, &mut lab).expect("state mpe").into();
         let evidence: Vec<M::Row> = M::state_evidence(&s).to_vec();
-        let sl: f64 = M::log_likelihood(&evidence).expect("stateless ll").into();
+        // The stateless log-likelihood of the state's rows, plus what each row lies below
+        // the exact product of its observations (to the power `γ`): the log-likelihood of
+        // that product.
+        let offset: f64 = (0..n).map(|q| {
+            let best = fused[q].iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            let held = evidence[q].as_ref().iter().map(|&x| Into::<f64>::into(x)).fold(0.0, f64::max);
+            best - held.ln()
+        }).sum::<f64>() * f64::from(M::EVIDENCE_EXPONENT);
+        let sl: f64 = Into::<f64>::into(M::log_likelihood(&evidence).expect("stateless ll")) + offset;
         M::marginals(&evidence, &mut full).expect("stateless marginals");
         let smv: f64 = M::mpe(&evidence, &mut vec![0u16; n]).expect("stateless mpe").into();
         assert!(close(ll, sl, tol), "{name} step {step}: state ll {ll} vs stateless {sl}");
-        assert!(close(mv, smv, tol), "{name} step {step}: state mpe {mv} vs stateless {smv}");
+        assert!(close(mv, smv + offset, tol), "{name} step {step}: state mpe {mv} vs stateless {smv} + {offset}");
         let q = rng.below(n);
         let mut one = M::ZERO_ROW;
         M::state_marginal(&mut s, q, &mut one).expect("state marginal");
@@ -164,8 +188,9 @@ where
             for p in 0..n { for k in 0..c { evs.extend_from_slice(&Into::<f64>::into(evidence[p].as_ref()[k]).to_le_bytes()); } }
             for &l in &probe { evs.extend_from_slice(&(l as f64).to_le_bytes()); }
             let pl: f64 = M::labelled_log_likelihood(&probe, &evidence).map_or(f64::NAN, Into::into);
-            out.extend_from_slice(&ll.to_le_bytes());
-            out.extend_from_slice(&mv.to_le_bytes());
+            // The interpreter sees the state's rows: the values without the offset.
+            out.extend_from_slice(&(ll - offset).to_le_bytes());
+            out.extend_from_slice(&(mv - offset).to_le_bytes());
             out.extend_from_slice(&pl.to_le_bytes());
             for &l in &lab { out.extend_from_slice(&(l as f64).to_le_bytes()); }
             for r in &marg { for &x in r.as_ref() { out.extend_from_slice(&Into::<f64>::into(x).to_le_bytes()); } }

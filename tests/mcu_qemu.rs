@@ -14,6 +14,10 @@
 //!   tolerances (1e-4 relative for log-likelihoods and MPE values, 1e-4 absolute for
 //!   marginals; the MPE labels must attain the interpreter's best value; tree
 //!   mixtures against `TreeInstance`, the exact f64 reference);
+//! - the streaming state's adversarial fusion sequence (hundreds of observations for one
+//!   class, then more for another, then the first again) on the target: its
+//!   log-likelihood is that of the product of every observation and the place's
+//!   marginal that of an `f64` log-domain reference (no class underflows or locks);
 //! - peak stack per call ≤ the bound below, statics + stack ≤ the board's 128 KiB;
 //! - the tree mixture of the 230-place map on Cortex-M4F: `marginals` ≤ 2 M
 //!   instructions, every call ≤ 16 KiB of stack, `STATE_BYTES` ≤ 64 KiB;
@@ -42,6 +46,7 @@ use graphspn::treemix::TreeInstance;
 use graphspn_generated::{
     demo_floor, demo_floor_trees, saarbrucken_seq2_night1, saarbrucken_seq2_night1_trees,
 };
+use graphspn_runtime::CompiledMap;
 
 /// The firmware's `Builder` of module `name` (as its build script has it): the
 /// GraphSPN of the demo model with 5 decompositions, or (`*_trees`) the demo tree
@@ -129,6 +134,10 @@ struct MapReport {
     state_marginals: Vec<Vec<u32>>,
     /// `STATE_BYTES` of the module (`state=` of the `map` line).
     state_bytes: Option<usize>,
+    /// The adversarial fusion sequence: per phase its last `observe_marginal` call.
+    fusion: Vec<Call>,
+    /// Per phase the state's log-likelihood and the place's marginal (`f32` bits).
+    fusion_state: Vec<Vec<u32>>,
 }
 
 /// A parsed firmware report.
@@ -188,7 +197,28 @@ fn parse(text: &str) -> Report {
                 state_bytes: line
                     .split_whitespace()
                     .find_map(|w| w.strip_prefix("state=")?.parse().ok()),
+                fusion: vec![],
+                fusion_state: vec![],
             }),
+            Some("fusion") => {
+                let m = maps.last_mut().expect("a map line first");
+                let phase: usize = words.next().unwrap().parse().unwrap();
+                assert_eq!(phase, m.fusion.len(), "fusion phases in order: {line}");
+                m.fusion.push(call(words.next().unwrap_or("?"), line));
+            }
+            Some("fusion_state") => {
+                let m = maps.last_mut().expect("a map line first");
+                let phase: usize = words.next().unwrap().parse().unwrap();
+                assert_eq!(
+                    phase,
+                    m.fusion_state.len(),
+                    "fusion states in order: {line}"
+                );
+                let bits = words.map(|w| u32::from_str_radix(w, 16));
+                let bits: Result<Vec<u32>, _> = bits.collect();
+                m.fusion_state
+                    .push(bits.unwrap_or_else(|_| panic!("fusion state: {line}")));
+            }
             Some("call") => {
                 let call = call(words.next().unwrap(), line);
                 maps.last_mut().expect("a map line first").calls.push(call);
@@ -685,6 +715,8 @@ struct MapResults {
     mpe: Vec<u16>,
     stream: Vec<(Result<u32, String>, Option<usize>)>,
     state_marginals: Vec<Vec<u32>>,
+    fusion: Vec<Result<u32, String>>,
+    fusion_state: Vec<Vec<u32>>,
 }
 
 fn results(r: &Report) -> Vec<MapResults> {
@@ -701,8 +733,70 @@ fn results(r: &Report) -> Vec<MapResults> {
                 .map(|(c, p)| (c.value.clone(), *p))
                 .collect(),
             state_marginals: m.state_marginals.clone(),
+            fusion: m.fusion.iter().map(|c| c.value.clone()).collect(),
+            fusion_state: m.fusion_state.clone(),
         })
         .collect()
+}
+
+/// The adversarial fusion sequence's exact outcome on module `M`, per phase: the
+/// log-likelihood of the product of every observation (the stateless log-likelihood of
+/// the `f64` log-domain reference rows, largest entry 1, plus `γ · max_c ln Π α`) and
+/// the place's marginal (stateless `marginals` of the reference rows).
+fn fusion_reference<M: CompiledMap<Scalar = f32>>() -> Vec<(f64, Vec<f64>)> {
+    let (n, c, p) = (M::NUM_PLACES, M::NUM_CLASSES, evidence::FUSION_PLACE);
+    let mut logs = vec![0.0f64; c];
+    let mut row = vec![0.0f32; c];
+    let mut out = vec![];
+    for &(class, other, count) in &evidence::FUSION {
+        evidence::favouring(class, other, &mut row);
+        for (l, &a) in logs.iter_mut().zip(&row) {
+            *l += f64::from(count) * f64::from(a).ln();
+        }
+        let best = logs.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let mut e = vec![M::ZERO_ROW; n];
+        for (q, r) in e.iter_mut().enumerate() {
+            for (k, x) in r.as_mut().iter_mut().enumerate() {
+                *x = if q == p {
+                    (logs[k] - best).exp() as f32
+                } else {
+                    1.0
+                };
+            }
+        }
+        let mut marg = vec![M::ZERO_ROW; n];
+        let ll = f64::from(M::marginals(&e, &mut marg).unwrap());
+        let ll = ll + f64::from(M::EVIDENCE_EXPONENT) * best;
+        out.push((ll, marg[p].as_ref().iter().map(|&x| f64::from(x)).collect()));
+    }
+    out
+}
+
+/// Checks one map's adversarial fusion sequence (run on the target) against its exact
+/// outcome: the log-likelihood of the product of the observations, and the place's
+/// marginal on the class the net evidence favours.
+fn check_fusion(target: &str, m: &MapReport, want: &[(f64, Vec<f64>)]) {
+    let ctx = |phase: usize| format!("{target} {} fusion phase {phase}", m.name);
+    assert_eq!(m.fusion.len(), evidence::FUSION.len(), "{}", ctx(0));
+    assert_eq!(m.fusion_state.len(), want.len(), "{}", ctx(0));
+    for (phase, (bits, (ll, row))) in m.fusion_state.iter().zip(want).enumerate() {
+        let got: Vec<f64> = bits.iter().map(|&b| f64::from(f32::from_bits(b))).collect();
+        assert!(
+            (got[0] - ll).abs() <= 1e-5 * ll.abs().max(1.0),
+            "{}: log-likelihood {} vs the product's {ll}",
+            ctx(phase),
+            got[0]
+        );
+        for (k, (g, w)) in got[1..].iter().zip(row).enumerate() {
+            assert!(
+                (g - w).abs() <= TOL,
+                "{}: class {k}: {g} vs {w}",
+                ctx(phase)
+            );
+        }
+        let class = evidence::FUSION[phase].0;
+        assert!(got[1 + class] > 0.999, "{}: {got:?}", ctx(phase));
+    }
 }
 
 /// The firmware's streaming steps replayed on the in-process host build of a map:
@@ -903,6 +997,12 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         host_answers!(demo_floor_trees, 2),
         host_answers!(saarbrucken_seq2_night1_trees, 3),
     ];
+    let fusions = [
+        fusion_reference::<demo_floor::Map>(),
+        fusion_reference::<saarbrucken_seq2_night1::Map>(),
+        fusion_reference::<demo_floor_trees::Map>(),
+        fusion_reference::<saarbrucken_seq2_night1_trees::Map>(),
+    ];
     let streams = [
         host_stream!(demo_floor, 0),
         host_stream!(saarbrucken_seq2_night1, 1),
@@ -937,6 +1037,7 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
                 m.name
             );
             check_stream(target, m, &streams[i]);
+            check_fusion(target, m, &fusions[i]);
             let full = m.calls[1].instructions;
             let (all, one) = (
                 median_instructions(m, "observe_marginals"),
@@ -948,7 +1049,8 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
                 full as f64 / all as f64,
                 full as f64 / one as f64
             );
-            let stream = m.stream.iter().map(|(c, _)| (c, bounds[i][4]));
+            let stream = m.stream.iter().map(|(c, _)| c).chain(&m.fusion);
+            let stream = stream.map(|c| (c, bounds[i][4]));
             for (call, bound) in m.calls.iter().zip(bounds[i]).chain(stream) {
                 eprintln!(
                     "{target} {} {}: {} instructions, {} bytes of stack (bound {bound})",

@@ -24,6 +24,8 @@
 //! stream set_all instructions=<n> stack=<bytes> value=<f32 bits, hex>|error=<e>
 //! step <i> <observe_marginals|observe_marginal> place=<p> instructions=<n> stack=<bytes> value=...
 //! state_marginals <place> <f32 bits, hex> ...
+//! fusion <phase> observe_marginal place=<p> instructions=<n> stack=<bytes> value=...
+//! fusion_state <phase> <log-likelihood bits> <the place's marginal: f32 bits> ...
 //! done
 //! ```
 #![cfg_attr(target_os = "none", no_std, no_main)]
@@ -138,9 +140,43 @@ fn stream<M: Compiled>(out: &mut impl Write, seed: u64) -> core::fmt::Result {
     }
     // The final state's marginals (not timed).
     match M::state_marginals() {
-        Ok(_) => M::with_views(|v| rows(out, "state_marginals", v.marginals, M::CLASSES)),
-        Err(e) => writeln!(out, "state_marginals error={e:?}"),
+        Ok(_) => M::with_views(|v| rows(out, "state_marginals", v.marginals, M::CLASSES))?,
+        Err(e) => writeln!(out, "state_marginals error={e:?}")?,
     }
+    fusion::<M>(out)
+}
+
+/// The adversarial fusion sequence ([`evidence::FUSION`]) on a new state: per phase
+/// its last `observe` + `marginal` timed, then the state's log-likelihood (of the
+/// product of every observation) and the place's marginal.
+fn fusion<M: Compiled>(out: &mut impl Write) -> core::fmt::Result {
+    M::start();
+    let p = evidence::FUSION_PLACE;
+    for (phase, &(class, other, count)) in evidence::FUSION.iter().enumerate() {
+        M::with_views(|v| {
+            evidence::favouring(class, other, v.step_row);
+            *v.step_place = p;
+        });
+        for _ in 1..count {
+            if let Err(e) = M::observe_marginal() {
+                return writeln!(out, "fusion {phase} error={e:?}");
+            }
+        }
+        write!(out, "fusion {phase} observe_marginal place={p} ")?;
+        measured(out, M::observe_marginal)?;
+        match M::state_marginals() {
+            Ok(ll) => M::with_views(|v| {
+                write!(out, "fusion_state {phase} {:08x}", ll.to_bits())?;
+                let row = v.marginals.chunks(M::CLASSES).nth(p).unwrap_or(&[]);
+                for x in row {
+                    write!(out, " {:08x}", x.to_bits())?;
+                }
+                writeln!(out)
+            })?,
+            Err(e) => writeln!(out, "fusion_state {phase} error={e:?}")?,
+        }
+    }
+    Ok(())
 }
 
 /// Runs `f`, writes `instructions=<n> stack=<bytes> value=<bits>|error=<e>` and a

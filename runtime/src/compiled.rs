@@ -21,6 +21,9 @@ pub trait CompiledMap {
     type Row: Copy + AsRef<[Self::Scalar]> + AsMut<[Self::Scalar]> + 'static;
     /// The model family (`"graphspn"` or `"tree_mixture"`).
     const MODEL_FAMILY: &'static str;
+    /// The evidence exponent `γ`: rows enter the model as `α^γ`, so scaling a row by `s`
+    /// adds `γ · ln s` to every log value (1 for GraphSPN).
+    const EVIDENCE_EXPONENT: u32;
     /// Number of places of the map.
     const NUM_PLACES: usize;
     /// Number of classes per place.

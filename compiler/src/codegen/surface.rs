@@ -10,6 +10,14 @@ use quote::{format_ident, quote};
 use super::emit::{Lit, array, int, rt};
 use super::{CodegenError, CodegenOptions};
 
+/// Bytes of one place's fused observations in a streaming state (the runtime's
+/// `Fused`: per class a mantissa of `scalar` bytes and a `u16` deficit, then two `i32`
+/// exponents, padded to the scalar's alignment).
+pub(super) fn fused_bytes(classes: usize, scalar: usize) -> usize {
+    let align = scalar.max(4);
+    (classes * (scalar + 2) + 8).div_ceil(align) * align
+}
+
 /// What the generator knows about the generated code, beside its text.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CodeReport {
@@ -93,6 +101,8 @@ pub(super) struct Surface<'a> {
     pub place_ids: Vec<u32>,
     /// Class names in class order.
     pub class_names: &'a [String],
+    /// The evidence exponent `γ` (`EVIDENCE_EXPONENT`): rows enter the model as `α^γ`.
+    pub evidence_exponent: u32,
 }
 
 /// The public constants (family, sizes, stack bounds, multiply-adds, ids, class names)
@@ -125,6 +135,7 @@ pub(super) fn constants_and_types(s: &Surface) -> TokenStream {
             .iter()
             .map(|&id| proc_macro2::Literal::u32_unsuffixed(id)),
     );
+    let gamma = proc_macro2::Literal::u32_unsuffixed(s.evidence_exponent);
     let names = array(
         s.class_names
             .iter()
@@ -167,6 +178,9 @@ pub(super) fn constants_and_types(s: &Surface) -> TokenStream {
         pub const PLACE_IDS: [u32; NUM_PLACES] = #ids;
         /// Class names in class-index order.
         pub const CLASS_NAMES: [&str; NUM_CLASSES] = #names;
+        /// The evidence exponent `γ`: rows enter the model as `α^γ`, so scaling a row by `s`
+        /// adds `γ · ln s` to every log value (1 for GraphSPN).
+        pub const EVIDENCE_EXPONENT: u32 = #gamma;
         /// The label meaning "unknown" in label arrays.
         pub const UNKNOWN: u16 = u16::MAX;
         /// Local evidence: one row of non-negative likelihoods (one per class) per place.
@@ -234,6 +248,7 @@ pub(super) fn compiled_map_impl(l: &Lit) -> TokenStream {
             const NUM_PLACES: usize = NUM_PLACES;
             const NUM_CLASSES: usize = NUM_CLASSES;
             const MODEL_FAMILY: &'static str = MODEL_FAMILY;
+            const EVIDENCE_EXPONENT: u32 = EVIDENCE_EXPONENT;
             const NUM_DECOMPOSITIONS: usize = NUM_DECOMPOSITIONS;
             const PLACE_IDS: &'static [u32] = &PLACE_IDS;
             const CLASS_NAMES: &'static [&'static str] = &CLASS_NAMES;

@@ -509,30 +509,6 @@ pub fn check_row<T: Real, const C: usize>(
     }
 }
 
-/// The element-wise product of two rows renormalised to a largest entry of 1, or
-/// `None` when it is zero everywhere (or not finite).
-pub fn fuse_rows<T: Real, const C: usize>(a: &[T; C], b: &[T; C]) -> Option<[T; C]> {
-    // Scale each factor first so the product can neither underflow nor overflow.
-    let (sa, sb) = (row_scale(a, u16::MAX), row_scale(b, u16::MAX));
-    if !above(sa, T::ZERO) || !above(sb, T::ZERO) {
-        return None;
-    }
-    let (ia, ib) = (T::ONE / sa, T::ONE / sb);
-    let mut f = [T::ZERO; C];
-    for ((o, &x), &y) in f.iter_mut().zip(a).zip(b) {
-        *o = (x * ia) * (y * ib);
-    }
-    let s = row_scale(&f, u16::MAX);
-    if !above(s, T::ZERO) || !s.is_finite() {
-        return None;
-    }
-    let inv = T::ONE / s;
-    for o in f.iter_mut() {
-        *o *= inv;
-    }
-    Some(f)
-}
-
 /// `Σ_i w_i · rows[i]` over the given rows (out-of-range rows are skipped): one place's
 /// marginal from the streaming state.
 pub fn mix_rows<T: Real, const C: usize, const D: usize>(

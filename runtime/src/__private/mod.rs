@@ -294,11 +294,13 @@ flavour!(
 
 mod blocks;
 mod engine;
+mod fusion;
 mod lanes;
 mod tree;
 
 pub use blocks::*;
 pub use engine::*;
+pub use fusion::{Fused, ln_shift};
 pub use lanes::*;
 pub use tree::*;
 
@@ -329,6 +331,8 @@ pub trait Real:
     fn from_index(i: usize) -> Self;
     /// An integer as a value (exact below 2^24 in magnitude for `f32`).
     fn from_i32(i: i32) -> Self;
+    /// A 64-bit integer as a value (rounded to nearest).
+    fn from_i64(i: i64) -> Self;
     /// Natural log (`ln 0 = -inf`).
     fn ln(self) -> Self;
     /// `e^x`.
@@ -373,6 +377,10 @@ macro_rules! real_impl {
             }
             #[inline(always)]
             fn from_i32(i: i32) -> $t {
+                i as $t
+            }
+            #[inline(always)]
+            fn from_i64(i: i64) -> $t {
                 i as $t
             }
             #[inline(always)]

@@ -105,7 +105,8 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
         /// to the root in every tree (messages recomputed, never divided out: no drift).
         /// `observe` keeps each class's product of observations exactly (a mantissa and a
         /// binary exponent per class), so no class underflows or is locked out however many
-        /// observations arrive. Costs: an update `Σ_t (depth_t(place) + 1)` beliefs and
+        /// observations arrive, and `log_likelihood` is that of the product of every
+        /// observation. Costs: an update `Σ_t (depth_t(place) + 1)` beliefs and
         /// matrix–vector products; `log_likelihood` O(trees · classes); `marginal(place)` a
         /// walk from each root to the place; `marginals` one downward pass per tree; `mpe`
         /// and `labelled_log_likelihood` a stateless pass on the state's evidence.
@@ -123,8 +124,8 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
             }
 
             /// The current evidence rows (all ones where a place has none; a row fused by
-            /// `observe` is the product of its observations renormalised to a largest
-            /// entry of 1).
+            /// `observe` is the product of the place's observations scaled by a power of two,
+            /// largest entry in `[1, 2)`, classes below `2^-80` of it (`f32`) set to 0).
             pub fn evidence(&self) -> &Evidence {
                 if self.0.is_ready() { self.0.rows() } else { &NO_EVIDENCE }
             }
@@ -153,7 +154,8 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
                 self.0.set_all(&MODEL, &PLACE_IDS, e)
             }
 
-            /// Natural log of the likelihood of the current evidence (from the cache).
+            /// Natural log of the likelihood of the current evidence (from the cache): of the
+            /// product of every observation where rows were fused by `observe`.
             pub fn log_likelihood(&mut self) -> Result<#t, #err> {
                 self.0.log_likelihood(&MODEL)
             }
@@ -170,16 +172,19 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
                 self.0.marginal::<H>(&MODEL, &PLACE_IDS, place, row)
             }
 
-            /// The MPE labelling of the current evidence (a full max-product pass).
+            /// The MPE labelling of the current evidence and its log value (a full
+            /// max-product pass; the value is of the product of every observation, like
+            /// `log_likelihood`).
             pub fn mpe(&mut self, labels: &mut Labels) -> Result<#t, #err> {
-                mpe_unchecked(self.evidence(), labels)
+                Ok(mpe_unchecked(self.evidence(), labels)? + self.0.ln_shift(&MODEL))
             }
 
             /// The log-likelihood of the current evidence with labelled places restricted to
-            /// their labels (a full value pass).
+            /// their labels (a full value pass; of the product of every observation, like
+            /// `log_likelihood`).
             pub fn labelled_log_likelihood(&mut self, labels: &Labels) -> Result<#t, #err> {
                 #rt::check_labels(labels, NUM_CLASSES)?;
-                labelled_log_likelihood_unchecked(labels, self.evidence())
+                Ok(labelled_log_likelihood_unchecked(labels, self.evidence())? + self.0.ln_shift(&MODEL))
             }
         }
     }

@@ -91,6 +91,7 @@ pub fn module(
         report: &report,
         place_ids: map.places().map(|p| p.id).collect(),
         class_names: model.classes.names(),
+        evidence_exponent: model.evidence_exponent,
     });
     let items = items(model, &cx);
     let tables = forest_tables(&plans, &cx);
@@ -119,12 +120,7 @@ fn items(model: &TreeMixture, cx: &Context) -> TokenStream {
         (_, true) => quote!(#rt::Lanes32),
         (_, false) => quote!(#rt::Lanes64),
     };
-    let (k, h, trees, gamma) = (
-        int(cx.k),
-        int(cx.h),
-        int(cx.t),
-        proc_macro2::Literal::u32_unsuffixed(model.evidence_exponent),
-    );
+    let (k, h, trees) = (int(cx.k), int(cx.h), int(cx.t));
     let average = matches!(model.mixing, crate::spn::Mixing::Average);
     quote! {
         /// The lane vector of a row of classes.
@@ -135,8 +131,6 @@ fn items(model: &TreeMixture, cx: &Context) -> TokenStream {
         const H: usize = #h;
         /// Number of spanning trees mixed at the root (`NUM_DECOMPOSITIONS`).
         pub const NUM_TREES: usize = #trees;
-        /// The evidence exponent `γ`: rows enter as `α^γ`.
-        pub const EVIDENCE_EXPONENT: u32 = #gamma;
         /// Whether `marginals` are the mean of the trees' exact marginals (`true`) or the
         /// exact marginals of the mixture (`false`).
         pub const AVERAGE_MIXING: bool = #average;

@@ -6,7 +6,7 @@
 use crate::treemix::{NO_PARENT, RootedForest, SpanningTrees, TreeMixture};
 
 use super::super::emit::Lit;
-use super::super::surface::CodeReport;
+use super::super::surface::{CodeReport, fused_bytes};
 use super::super::{CodegenError, CodegenOptions, Precision, Vectorisation};
 
 /// Sizes and types every emitter of a tree-mixture module needs.
@@ -231,7 +231,7 @@ pub(super) fn report(plans: &[ForestPlan], cx: &Context) -> CodeReport {
     let path = h * (row + 2) + temps;
     let stack_state = base + path.max(value + n * c);
     let align = (cx.width * s).max(4);
-    let fields = 2 * n * c * s + 2 * n * c + t * n * row + 4 * t * n + 4 * t + 1;
+    let fields = n * c * s + n * fused_bytes(c, s) + t * n * row + 4 * t * n + 4 * t + 1;
     let state_bytes = fields.div_ceil(align) * align;
     let per_forest =
         |p: &ForestPlan| 4 * n + 2 * n + 2 * (n + 1) + 2 * p.kids.len() + 2 * p.roots.len() + 48;

@@ -48,7 +48,7 @@ use super::analysis::{Numerics, Unique, numerics, unique_components};
 use super::emit::{Lit, array, hex, int, int_array, rt};
 use super::kernels;
 use super::sparse::{Counts, SparseCode};
-use super::surface::{CodeReport, Surface, compiled_map_impl, constants_and_types};
+use super::surface::{CodeReport, Surface, compiled_map_impl, constants_and_types, fused_bytes};
 use super::template::TemplateCode;
 use super::{CodegenError, CodegenOptions, Precision, Vectorisation};
 
@@ -356,6 +356,7 @@ pub fn module(
         report: &report,
         place_ids: map.places().map(|p| p.id).collect(),
         class_names: model.classes.names(),
+        evidence_exponent: 1,
     });
     let rows = int(layout.rows);
     let functions = tpls.iter().map(|tp| &tp.code);
@@ -492,8 +493,13 @@ fn report(
         .unwrap_or(0);
     let top = d_count * 32 + 1024;
     let (u_total, rows) = (layout.components, layout.rows);
-    let state_bytes =
-        n * c * scalar + n * scalar + u_total * scalar + rows * c * scalar + d_count * scalar + 16;
+    let state_bytes = n * c * scalar
+        + n * scalar
+        + n * fused_bytes(c, scalar)
+        + u_total * scalar
+        + rows * c * scalar
+        + d_count * scalar
+        + 16;
     let per_groups =
         |f: &dyn Fn(&Tpl) -> usize| -> usize { tpls.iter().map(|tp| tp.groups() * f(tp)).sum() };
     let macs_ll = per_groups(&|tp| tp.counts.fwd);

@@ -13,6 +13,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let cache = cache_methods(tpls, cx);
     let updates = update_methods(cx);
     let queries = query_methods(tpls, cx);
+    let rt = rt();
     quote! {
         #ty
         impl State {
@@ -22,6 +23,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
                 State {
                     ev: [[0.0; NUM_CLASSES]; NUM_PLACES],
                     lns: [0.0; NUM_PLACES],
+                    fused: [#rt::Fused::ZERO; NUM_PLACES],
                     val: [0.0; NUM_COMPONENTS],
                     post: [[0.0; NUM_CLASSES]; NUM_ROWS],
                     w: [0.0; NUM_DECOMPOSITIONS],
@@ -31,7 +33,9 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
                 }
             }
 
-            /// The current evidence rows (all ones where a place has none).
+            /// The current evidence rows (all ones where a place has none; a row fused by
+            /// `observe` is the product of the place's observations scaled by a power of two,
+            /// largest entry in `[1, 2)`, classes below `2^-80` of it (`f32`) set to 0).
             pub fn evidence(&self) -> &Evidence {
                 if self.ready { &self.ev } else { &NO_EVIDENCE }
             }
@@ -45,7 +49,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
 
 /// The `State` struct (with its documentation), `NO_EVIDENCE` and `Default`.
 fn state_type(cx: &Context) -> TokenStream {
-    let t = cx.l.ty();
+    let (rt, t) = (rt(), cx.l.ty());
     quote! {
         /// Streaming inference for a robot that gets evidence one place at a time: the
         /// caller-owned cache of every component's value and local posteriors (fixed size,
@@ -55,7 +59,10 @@ fn state_type(cx: &Context) -> TokenStream {
         /// An update (`set_evidence`, `observe`, `clear_evidence`) re-evaluates only the
         /// components containing that place (at most one per decomposition) and re-mixes the
         /// decompositions from the cached component values (never by subtracting, so
-        /// thousands of updates do not drift). Costs: an update, about
+        /// thousands of updates do not drift). `observe` keeps each class's product of
+        /// observations exactly (a mantissa and a binary exponent per class): no class
+        /// underflows, none is locked out however many observations arrive, and
+        /// `log_likelihood` is that of the product of every observation. Costs: an update, about
         /// [`MACS_OBSERVE_MARGINALS`] multiply-adds with `marginals`; `log_likelihood` and
         /// `marginal` O(1) and O(D·C); `marginals` O(components·places·C); `mpe` and
         /// `labelled_log_likelihood` a full stateless pass on the state's evidence. The first
@@ -66,6 +73,7 @@ fn state_type(cx: &Context) -> TokenStream {
         pub struct State {
             ev: Evidence,
             lns: [#t; NUM_PLACES],
+            fused: [#rt::Fused<#t, NUM_CLASSES>; NUM_PLACES],
             val: [#t; NUM_COMPONENTS],
             post: [[#t; NUM_CLASSES]; NUM_ROWS],
             w: [#t; NUM_DECOMPOSITIONS],
@@ -143,16 +151,19 @@ fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
             if !self.ready {
                 self.ev = NO_EVIDENCE;
                 self.lns = [0.0; NUM_PLACES];
+                self.fused = [#rt::Fused::ONES; NUM_PLACES];
                 self.refresh();
             }
         }
 
-        /// Stores `row` for `place` and re-evaluates the components containing it.
-        fn store(&mut self, place: usize, row: [#t; NUM_CLASSES], ln_scale: #t) {
+        /// Stores `row` and its fused form for `place` and re-evaluates the components
+        /// containing it.
+        fn store(&mut self, place: usize, row: [#t; NUM_CLASSES], fused: #rt::Fused<#t, NUM_CLASSES>) {
             self.fresh();
-            if let (Some(r), Some(s)) = (self.ev.get_mut(place), self.lns.get_mut(place)) {
+            if let (Some(r), Some(s), Some(f)) = (self.ev.get_mut(place), self.lns.get_mut(place), self.fused.get_mut(place)) {
                 *r = row;
-                *s = ln_scale;
+                *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
+                *f = fused;
             }
             if let Some(units) = PLACE_UNITS.get(place) {
                 for &u in units {
@@ -179,26 +190,25 @@ fn update_methods(cx: &Context) -> TokenStream {
         pub fn set_evidence(&mut self, place: usize, row: &[#t; NUM_CLASSES]) -> Result<(), #err> {
             let id = Self::place_index(place)?;
             #rt::check_row(row, place, id)?;
-            let s = row.iter().copied().fold(0.0, #t::max);
-            self.store(place, *row, #rt::Real::ln(s));
+            self.store(place, *row, #rt::Fused::of(row));
             Ok(())
         }
 
-        /// Fuses a new observation into the place's row (element-wise product, renormalised
-        /// to a largest entry of 1, so repeated observations never underflow) and updates
-        /// the cache. An invalid row, or one that leaves the place no class at all, is
+        /// Fuses a new observation into the place's row (element-wise product, kept
+        /// exactly per class, so repeated observations never underflow) and updates the
+        /// cache. An invalid row, or one that leaves the place no class at all, is
         /// rejected and nothing changes.
         pub fn observe(&mut self, place: usize, row: &[#t; NUM_CLASSES]) -> Result<(), #err> {
             let id = Self::place_index(place)?;
             #rt::check_row(row, place, id)?;
             self.fresh();
-            let old = match self.ev.get(place) {
-                Some(r) => *r,
-                None => [1.0; NUM_CLASSES],
+            let old = match self.fused.get(place) {
+                Some(f) => *f,
+                None => #rt::Fused::ONES,
             };
-            match #rt::fuse_rows(&old, row) {
-                Some(f) => {
-                    self.store(place, f, 0.0);
+            match old.observe(row) {
+                Some((f, r)) => {
+                    self.store(place, r, f);
                     Ok(())
                 }
                 None => Err(::graphspn_runtime::EvidenceError::NoMass { place, place_id: u64::from(id) }),
@@ -208,7 +218,7 @@ fn update_methods(cx: &Context) -> TokenStream {
         /// Removes the evidence of `place` (back to a row of ones) and updates the cache.
         pub fn clear_evidence(&mut self, place: usize) -> Result<(), #err> {
             Self::place_index(place)?;
-            self.store(place, [1.0; NUM_CLASSES], 0.0);
+            self.store(place, [1.0; NUM_CLASSES], #rt::Fused::ONES);
             Ok(())
         }
 
@@ -216,8 +226,9 @@ fn update_methods(cx: &Context) -> TokenStream {
         pub fn set_all(&mut self, e: &Evidence) -> Result<(), #err> {
             #check(e, &PLACE_IDS)?;
             self.ev = *e;
-            for (s, row) in self.lns.iter_mut().zip(e) {
+            for ((s, f), row) in self.lns.iter_mut().zip(self.fused.iter_mut()).zip(e) {
                 *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
+                *f = #rt::Fused::of(row);
             }
             self.refresh();
             Ok(())
@@ -238,10 +249,11 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
         })
         .collect();
     quote! {
-        /// Natural log of the likelihood of the current evidence (from the cache).
+        /// Natural log of the likelihood of the current evidence (from the cache): of the
+        /// product of every observation where rows were fused by `observe`.
         pub fn log_likelihood(&mut self) -> Result<#t, #err> {
             self.fresh();
-            let scale: #t = self.lns.iter().copied().sum();
+            let scale: #t = self.lns.iter().copied().sum::<#t>() + #rt::ln_shift(&self.fused, 1);
             if self.ok && scale + self.lhat > #t::NEG_INFINITY {
                 Ok(scale + self.lhat)
             } else {
@@ -270,16 +282,18 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
             Ok(())
         }
 
-        /// The MPE labelling of the current evidence (a full max-product pass).
+        /// The MPE labelling of the current evidence and its log value (a full max-product
+        /// pass; the value is of the product of every observation, like `log_likelihood`).
         pub fn mpe(&mut self, labels: &mut Labels) -> Result<#t, #err> {
-            mpe_unchecked(self.evidence(), labels)
+            Ok(mpe_unchecked(self.evidence(), labels)? + #rt::ln_shift(&self.fused, 1))
         }
 
         /// The log-likelihood of the current evidence with labelled places restricted to
-        /// their labels (a full value pass).
+        /// their labels (a full value pass; of the product of every observation, like
+        /// `log_likelihood`).
         pub fn labelled_log_likelihood(&mut self, labels: &Labels) -> Result<#t, #err> {
             #rt::check_labels(labels, NUM_CLASSES)?;
-            labelled_log_likelihood_unchecked(labels, self.evidence())
+            Ok(labelled_log_likelihood_unchecked(labels, self.evidence())? + #rt::ln_shift(&self.fused, 1))
         }
     }
 }

@@ -5,22 +5,19 @@
 //! # Memory
 //!
 //! Per forest and place one row (the message to the parent; a root's belief) and one
-//! exponent; per place its evidence row (what `evidence()` returns), and per class the
-//! fused observation as a mantissa in `[1, 2)` and a `u16` deficit: how many binary
-//! orders of magnitude the class lies below the place's best class. Bytes:
-//! `T·N·(K·size_of(V) + 4) + N·C·(2·size_of(scalar) + 2) + 4·T + 4`.
+//! exponent; per place its evidence row (what `evidence()` returns) and its fused
+//! observations ([`Fused`]: per class a mantissa and a `u16` deficit, and two `i32`
+//! exponents). Bytes: `T·N·(K·size_of(V) + 4) + N·(C·(2·size_of(scalar) + 2) + 8) + 4·T +
+//! 4`.
 //!
 //! # Exact fusion (`observe`)
 //!
-//! The fused row of a place is the product of its observations. Each class keeps its
-//! product as `mantissa · 2^(best − deficit)`: one rounding per observation (relative
-//! `ε/2`), no underflow however many observations arrive, and a class that falls far
-//! behind is never locked — evidence for it raises it again exactly as the product
-//! says. A deficit saturates at 65,535 (a class `2^-65535 ≈ e^-45425` times the best):
-//! only then does the state deviate from the exact product, and always towards the
-//! class recovering sooner. The row the inference uses (and `evidence()` returns) is
-//! `mantissa · 2^-deficit` (largest entry in `[1, 2)`), with classes more than 2^126
-//! (`f32`) times below the best set to 0, which `φ`'s flush rule would drop anyway.
+//! The fused row of a place is the product of its observations, kept exactly by
+//! [`Fused`] (no underflow, no class locked at 0; see its module). The row the inference
+//! uses (and `evidence()` returns) is that product scaled by a power of two (largest
+//! entry in `[1, 2)`, classes below `2^TINY_EXP` of it set to 0, which `φ`'s flush rule
+//! drops anyway), and `log_likelihood` adds the dropped power back: it is the
+//! log-likelihood of the product of every observation.
 //!
 //! # Costs
 //!
@@ -29,15 +26,12 @@
 //! `marginal(place)` walks each forest from the root to the place (`O(T·height·C²)`),
 //! `marginals` is one downward pass per forest (`O(T·N·C²)`).
 
-use super::super::{Acc, Lanes, Real, check_row, mix};
+use super::super::{Acc, Fused, Lanes, Real, check_row, ln_shift, mix};
 use super::pass::{
     add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
 };
 use super::{Forest, Rows, TreeModel, belief, hsum, matvec, norm};
 use crate::EvidenceError;
-
-/// Largest deficit of a fused class (see the module docs).
-const MAX_DEFICIT: i32 = u16::MAX as i32;
 
 /// The caller-owned cache of a compiled tree mixture (see the module docs); all zeros
 /// when new (a `static` one sits in `.bss`): rows of ones are written by the first call
@@ -45,8 +39,7 @@ const MAX_DEFICIT: i32 = u16::MAX as i32;
 #[derive(Clone)]
 pub struct TreeState<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize> {
     rows: [[V::Scalar; C]; N],
-    mant: [[V::Scalar; C]; N],
-    deficit: [[u16; C]; N],
+    fused: [Fused<V::Scalar, C>; N],
     msg: [[[V; K]; N]; T],
     exp: [[i32; N]; T],
     total: [i32; T],
@@ -70,53 +63,6 @@ fn place_id<const N: usize>(ids: &[u32; N], place: usize) -> Result<u32, Evidenc
     })
 }
 
-/// The exact form of a row: per class its mantissa and deficit below the best class.
-fn exact_form<T: Real, const C: usize>(row: &[T; C]) -> ([T; C], [u16; C]) {
-    let mut mant = [T::ZERO; C];
-    let mut ex = [0i32; C];
-    let mut best = i32::MIN;
-    for ((m, x), &a) in mant.iter_mut().zip(ex.iter_mut()).zip(row) {
-        if a > T::ZERO {
-            (*m, *x) = a.split();
-            best = best.max(*x);
-        }
-    }
-    (mant, deficits(&mant, &ex, best))
-}
-
-/// Deficits `best − x` of the nonzero classes, saturated at [`MAX_DEFICIT`].
-fn deficits<T: Real, const C: usize>(mant: &[T; C], ex: &[i32; C], best: i32) -> [u16; C] {
-    let mut d = [0u16; C];
-    for ((o, &m), &x) in d.iter_mut().zip(mant).zip(ex) {
-        if m > T::ZERO {
-            *o = best.saturating_sub(x).clamp(0, MAX_DEFICIT) as u16;
-        }
-    }
-    d
-}
-
-/// The row of an exact form: `mantissa · 2^-deficit` (exact), classes beyond the normal
-/// range 0, divided by its largest entry (which becomes exactly 1).
-fn row_of<T: Real, const C: usize>(mant: &[T; C], def: &[u16; C]) -> [T; C] {
-    let mut r = [T::ZERO; C];
-    let mut max = T::ZERO;
-    for ((o, &m), &d) in r.iter_mut().zip(mant).zip(def) {
-        let d = i32::from(d);
-        if d <= -T::MIN_EXP {
-            *o = m * T::pow2(-d);
-            if *o > max {
-                max = *o;
-            }
-        }
-    }
-    if max > T::ZERO {
-        for o in r.iter_mut() {
-            *o = *o / max;
-        }
-    }
-    r
-}
-
 impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     TreeState<V, C, K, N, T>
 {
@@ -124,8 +70,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     pub const fn new() -> Self {
         TreeState {
             rows: [[<V::Scalar as Real>::ZERO; C]; N],
-            mant: [[<V::Scalar as Real>::ZERO; C]; N],
-            deficit: [[0; C]; N],
+            fused: [Fused::ZERO; N],
             msg: [[[V::ZERO; K]; N]; T],
             exp: [[0; N]; T],
             total: [0; T],
@@ -149,8 +94,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         if !self.ready {
             let one = V::Scalar::ONE;
             self.rows = [[one; C]; N];
-            self.mant = [[one; C]; N];
-            self.deficit = [[0; C]; N];
+            self.fused = [Fused::ONES; N];
             self.refresh(m);
         }
     }
@@ -219,21 +163,17 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         });
     }
 
-    /// Stores the row and exact form of `place` and updates the forests.
+    /// Stores the row and fused form of `place` and updates the forests.
     fn store(
         &mut self,
         m: &TreeModel<V, C, K>,
         place: usize,
         row: [V::Scalar; C],
-        exact: ([V::Scalar; C], [u16; C]),
+        fused: Fused<V::Scalar, C>,
     ) {
-        if let (Some(r), Some(x), Some(d)) = (
-            self.rows.get_mut(place),
-            self.mant.get_mut(place),
-            self.deficit.get_mut(place),
-        ) {
+        if let (Some(r), Some(f)) = (self.rows.get_mut(place), self.fused.get_mut(place)) {
             *r = row;
-            (*x, *d) = exact;
+            *f = fused;
         }
         self.update(m, place);
     }
@@ -249,7 +189,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     ) -> Result<(), EvidenceError> {
         check_row(row, place, place_id(ids, place)?)?;
         self.fresh(m);
-        self.store(m, place, *row, exact_form(row));
+        self.store(m, place, *row, Fused::of(row));
         Ok(())
     }
 
@@ -266,32 +206,14 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         let id = place_id(ids, place)?;
         check_row(row, place, id)?;
         self.fresh(m);
-        let (Some(mant), Some(def)) = (self.mant.get(place), self.deficit.get(place)) else {
+        let Some(old) = self.fused.get(place) else {
             return Ok(());
         };
-        let zero = V::Scalar::ZERO;
-        let mut nm = [zero; C];
-        let mut ex = [0i32; C];
-        let mut best = i32::MIN;
-        for ((((o, x), &a), &m0), &d) in
-            nm.iter_mut().zip(ex.iter_mut()).zip(row).zip(mant).zip(def)
-        {
-            if a > zero && m0 > zero {
-                let (ma, ea) = a.split();
-                let (mp, ep) = (m0 * ma).split();
-                *o = mp;
-                *x = ea.wrapping_add(ep).wrapping_sub(i32::from(d));
-                best = best.max(*x);
-            }
-        }
-        if best == i32::MIN {
-            return Err(EvidenceError::NoMass {
-                place,
-                place_id: u64::from(id),
-            });
-        }
-        let d = deficits(&nm, &ex, best);
-        self.store(m, place, row_of(&nm, &d), (nm, d));
+        let (fused, fused_row) = old.observe(row).ok_or(EvidenceError::NoMass {
+            place,
+            place_id: u64::from(id),
+        })?;
+        self.store(m, place, fused_row, fused);
         Ok(())
     }
 
@@ -304,8 +226,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     ) -> Result<(), EvidenceError> {
         place_id(ids, place)?;
         self.fresh(m);
-        let one = [V::Scalar::ONE; C];
-        self.store(m, place, one, (one, [0; C]));
+        self.store(m, place, [V::Scalar::ONE; C], Fused::ONES);
         Ok(())
     }
 
@@ -321,12 +242,8 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
             check_row(row, p, id)?;
         }
         self.rows = *e;
-        for ((r, x), d) in e
-            .iter()
-            .zip(self.mant.iter_mut())
-            .zip(self.deficit.iter_mut())
-        {
-            (*x, *d) = exact_form(r);
+        for (r, f) in e.iter().zip(self.fused.iter_mut()) {
+            *f = Fused::of(r);
         }
         self.refresh(m);
         Ok(())
@@ -360,14 +277,25 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     ) -> Result<(V::Scalar, [V::Scalar; T]), EvidenceError> {
         self.fresh(m);
         match mix(&self.values(m)) {
-            Some((l, w)) if l > V::Scalar::NEG_INFINITY => {
-                Ok((l, if m.average { [V::Scalar::ONE; T] } else { w }))
-            }
+            Some((l, w)) if l > V::Scalar::NEG_INFINITY => Ok((
+                l + self.ln_shift(m),
+                if m.average { [V::Scalar::ONE; T] } else { w },
+            )),
             _ => Err(EvidenceError::ZeroLikelihood),
         }
     }
 
-    /// `ln S` of the current rows, from the cache (`O(T·C)`).
+    /// `ln` of the factor by which the stored rows (to the power `γ`) lie below the
+    /// fused observations' (see [`ln_shift`]); `0` when no row was fused by `observe`.
+    pub fn ln_shift(&self, m: &TreeModel<V, C, K>) -> V::Scalar {
+        if self.ready {
+            ln_shift(&self.fused, m.gamma)
+        } else {
+            V::Scalar::ZERO
+        }
+    }
+
+    /// `ln S` of the fused observations, from the cache (`O(T·C)`).
     pub fn log_likelihood(&mut self, m: &TreeModel<V, C, K>) -> Result<V::Scalar, EvidenceError> {
         self.mixed(m).map(|(l, _)| l)
     }
