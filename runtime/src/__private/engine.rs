@@ -477,6 +477,18 @@ pub fn state_marginals<
     }
 }
 
+/// Validates every row of evidence with [`check_row`] (the one check of every entry
+/// point, stateless and streaming); errors name the place index and its id from `ids`.
+pub fn check_rows<T: Real, const N: usize, const C: usize>(
+    e: &[[T; C]; N],
+    ids: &[u32; N],
+) -> Result<(), EvidenceError> {
+    for (p, (row, &id)) in e.iter().zip(ids).enumerate() {
+        check_row(row, p, id)?;
+    }
+    Ok(())
+}
+
 /// Validates one row of evidence for place `p` (finite, `≥ 0`, some mass).
 pub fn check_row<T: Real, const C: usize>(
     row: &[T; C],

@@ -69,37 +69,14 @@ macro_rules! flavour {
      $check:ident, $scale:ident, $prep:ident, $lnf:ident, $expf:ident, $dot:ident, $sum:ident,
      $prod:ident, $lse:ident, $argmax:ident, $flow:ident, $axpy:ident, $weights:ident,
      $lnrow:ident) => {
-        /// Validates evidence: every value finite and `≥ 0`, every row with some mass.
+        /// Validates evidence: every value finite and `≥ 0`, every row with some mass
+        /// (with [`check_rows`], the check the streaming states use too).
         /// Errors name the place index and its id from `ids`.
         pub fn $check<const N: usize, const C: usize>(
             e: &[[$t; C]; N],
             ids: &[u32; N],
         ) -> Result<(), EvidenceError> {
-            for (p, (row, &id)) in e.iter().zip(ids).enumerate() {
-                let place_id = u64::from(id);
-                let mut mass = false;
-                for (class, &v) in row.iter().enumerate() {
-                    if !v.is_finite() {
-                        return Err(EvidenceError::NotFinite {
-                            place: p,
-                            place_id,
-                            class,
-                        });
-                    }
-                    if v < 0.0 {
-                        return Err(EvidenceError::Negative {
-                            place: p,
-                            place_id,
-                            class,
-                        });
-                    }
-                    mass |= v > 0.0;
-                }
-                if !mass {
-                    return Err(EvidenceError::NoMass { place: p, place_id });
-                }
-            }
-            Ok(())
+            check_rows(e, ids)
         }
 
         /// `Σ_p ln s_p` in `f64`, where `s_p` is the largest value of row `p`, or the

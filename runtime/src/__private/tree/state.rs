@@ -26,7 +26,7 @@
 //! `marginal(place)` walks each forest from the root to the place (`O(T·height·C²)`),
 //! `marginals` is one downward pass per forest (`O(T·N·C²)`).
 
-use super::super::{Acc, Fused, Lanes, Real, check_row, ln_shift, mix};
+use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, ln_shift, mix};
 use super::pass::{
     add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
 };
@@ -238,9 +238,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         ids: &[u32; N],
         e: &[[V::Scalar; C]; N],
     ) -> Result<(), EvidenceError> {
-        for (p, (row, &id)) in e.iter().zip(ids).enumerate() {
-            check_row(row, p, id)?;
-        }
+        check_rows(e, ids)?;
         self.rows = *e;
         for (r, f) in e.iter().zip(self.fused.iter_mut()) {
             *f = Fused::of(r);
