@@ -218,6 +218,18 @@ pub enum MapError {
         /// What serde_json reported.
         message: String,
     },
+    /// A map with more places than the caller can take (counted in the file, before
+    /// the map's graph is built).
+    #[error("{}: {places} places, more than the {limit} allowed", path.display())]
+    TooManyPlaces {
+        /// The map file (`nodes.dat` of a COLD map).
+        path: PathBuf,
+        /// Places the file lists (for a COLD map: the lines of `nodes.dat`, before
+        /// filtering).
+        places: usize,
+        /// The limit.
+        limit: usize,
+    },
     /// A JSON map of an unsupported format version.
     #[error("unsupported map format {found} (this version reads format {supported})")]
     FormatVersion {
