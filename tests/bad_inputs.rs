@@ -14,6 +14,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use graphspn_compiler::map::PAPER_CLASSES;
 use serde_json::{Value, json};
 
 fn repo(p: &str) -> PathBuf {
@@ -953,6 +954,180 @@ fn corpus(root: &Path) -> Vec<Case> {
         1,
         &["dec_syntax.json", "line 2"],
     ));
+
+    // Work that cannot fit, refused before it is attempted (issue 23 §2): a map over the
+    // generated code's 65,535 places (JSON and COLD, counted while read), decompositions
+    // and explicit SPNs whose memory estimate is over the limit on it, an evidence file
+    // larger than any evidence of its map, a decompositions file with too many entries.
+    let big = 65_536;
+    let places: Vec<String> = (0..big)
+        .map(|i| {
+            format!(
+                "{{\"id\": {i}, \"class\": \"CR\", \"placeholder\": false, \"x\": 0, \"y\": 0}}"
+            )
+        })
+        .collect();
+    std::fs::write(
+        root.join("big.json"),
+        format!(
+            "{{\"format\": 1, \"name\": \"big\", \"classes\": {}, \"places\": [\n{}\n], \"edges\": []}}\n",
+            json!(PAPER_CLASSES),
+            places.join(",\n")
+        ),
+    )
+    .unwrap();
+    std::fs::create_dir(root.join("big_cold")).unwrap();
+    let nodes: Vec<String> = (0..big)
+        .map(|i| cold_line(i as u32, i as f64, "CR", &[(i as u32 + 1) % big as u32]))
+        .collect();
+    std::fs::write(root.join("big_cold/nodes.dat"), nodes.join("\n") + "\n").unwrap();
+    std::fs::write(root.join("big_cold/rooms.dat"), "").unwrap();
+    let refused_work: Vec<(&str, Vec<&str>, Vec<&str>)> = vec![
+        (
+            "compile json map over 65535 places",
+            vec![
+                "compile",
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/big.json",
+                "--out",
+                "{root}/o.rs",
+            ],
+            vec!["--map", "big.json", "65536 places", "at most 65535"],
+        ),
+        (
+            "compile cold map over 65535 places",
+            vec![
+                "compile",
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/big_cold",
+                "--out",
+                "{root}/o.rs",
+            ],
+            vec!["--map", "big_cold", "65536 places", "at most 65535"],
+        ),
+        (
+            "decompose count 1000 on a large map",
+            vec![
+                "decompose",
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/big.json",
+                "--count",
+                "1000",
+                "--out",
+                "{root}/o.json",
+            ],
+            vec!["--map", "65536 places", "--count 1000", "GB (limit 4.3 GB)"],
+        ),
+        (
+            "instance decompositions 1000 on a large map",
+            vec![
+                "instance",
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/big.json",
+                "--decompositions",
+                "1000",
+                "--out",
+                "{root}/o.json",
+            ],
+            vec!["--decompositions 1000", "GB (limit 4.3 GB)"],
+        ),
+        (
+            "infer decompositions 1000 on a large map",
+            vec![
+                "infer",
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/big.json",
+                "--decompositions",
+                "1000",
+            ],
+            vec!["--decompositions 1000", "GB (limit 4.3 GB)"],
+        ),
+        (
+            "instance tree spn on a large map",
+            vec![
+                "instance",
+                "--model",
+                "{root}/trees.json",
+                "--map",
+                "{root}/big.json",
+                "--out",
+                "{root}/o.json",
+            ],
+            vec!["explicit SPN of", "GB (limit 4.3 GB)"],
+        ),
+    ];
+    for (name, args, expect) in &refused_work {
+        cases.push(case(name, args, 1, expect));
+    }
+    // Larger than any evidence file of the 80-place demo floor can be (blank padding).
+    std::fs::write(
+        root.join("ev_huge.json"),
+        format!(
+            "{{\"format\": 1, \"evidence\": {{}}{}}}",
+            " ".repeat(200_000)
+        ),
+    )
+    .unwrap();
+    cases.push(case(
+        "infer evidence file too large",
+        &[
+            "infer",
+            "--model",
+            "{root}/model.json",
+            "--map",
+            "{root}/floor.json",
+            "--evidence",
+            "{root}/ev_huge.json",
+        ],
+        1,
+        &[
+            "--evidence",
+            "ev_huge.json",
+            "0.2 MB",
+            "more than an evidence file",
+            "80 places",
+        ],
+    ));
+    let mut many = decs.clone();
+    let one = many["decompositions"][0].clone();
+    many["decompositions"] = Value::Array(vec![one; 1001]);
+    write_json(&root.join("dec_1001.json"), &many);
+    for (cmd, flag) in [
+        ("infer", "--decompositions-file"),
+        ("compile", "--decompositions"),
+    ] {
+        cases.push(case(
+            &format!("{cmd} decompositions file of 1001"),
+            &[
+                cmd,
+                "--model",
+                "{root}/model.json",
+                "--map",
+                "{root}/floor.json",
+                flag,
+                "{root}/dec_1001.json",
+                "--out",
+                "{root}/o.x",
+            ],
+            1,
+            &[
+                flag,
+                "dec_1001.json",
+                "holds 1001 decompositions",
+                "at most 1000",
+            ],
+        ));
+    }
 
     // Argument sets: flags out of range, outputs that may not be written.
     let m = "{root}/model.json";

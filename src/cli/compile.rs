@@ -8,10 +8,15 @@ use graphspn_compiler::codegen::{
     Builder, Precision, Vectorisation, check_module_name, is_generated_file,
 };
 
+use super::budget::{Budget, Work, read_map_within};
 use super::common::{
-    check_decomposition_count, declare_map, decompositions_for, load_model, parse_strategy,
-    read_map,
+    check_decomposition_count, count_decompositions_file, declare_map, decompositions_for,
+    load_model, parse_strategy,
 };
+
+/// Largest map `compile` takes: the generator's limit (its tables index places with
+/// `u16`), checked here while the map is read, before any work.
+const MAX_COMPILED_PLACES: usize = u16::MAX as usize;
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
 
@@ -106,7 +111,27 @@ pub fn run(args: CompileArgs) -> Result<()> {
     // The inputs are read and checked here, as by every other command (errors name the
     // flag, file, line, template and node), before the builder reads them again.
     let model = load_model(&args.model)?;
-    let map = read_map(&map_path)?.map;
+    let budget = match &args.decompositions {
+        Some(f) => {
+            let count = count_decompositions_file("--decompositions", f)?;
+            Budget::new(
+                format!("--decompositions {} ({count} decompositions)", f.display()),
+                Work::Decompositions {
+                    count,
+                    candidates: 0,
+                },
+            )
+        }
+        None => Budget::new(
+            format!("--count {}", args.count),
+            Work::decompositions(args.count),
+        ),
+    }
+    .place_limit(
+        MAX_COMPILED_PLACES,
+        "at most 65535 places can be compiled (the generated code indexes places with 16 bits)",
+    );
+    let map = read_map_within("--map", &map_path, &budget)?.map;
     let decompositions = match &args.decompositions {
         Some(f) => Some(decompositions_for(
             &model,
