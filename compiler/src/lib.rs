@@ -5,6 +5,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`spn`] | sum-product networks: representation, validation, JSON format |
+//! | [`domain`] | the domains of numeric settings, and the one check per settings type |
 //! | [`interpreter`] | the exact reference evaluator: log-likelihood, marginals, MPE |
 //! | [`map`] | topological maps, the COLD and JSON loaders, the synthetic office-floor generator |
 //! | [`template`] | sub-graph templates (Singleton, Pair, Three, Star, user-defined) and matching |
@@ -18,6 +19,7 @@
 //! | [`mrf`] | Markov random field baselines with loopy belief propagation |
 //! | [`noise`] | the paper's simulation of noisy local evidence (noise levels 1–6) |
 //! | [`experiments`] | the paper's experiments: validation, reproduction, report |
+//! | [`progress`] | progress of long steps on standard error: bars on a terminal, plain lines elsewhere |
 //!
 //! Features: `host` (default) is everything; `codegen` alone is code generation and
 //! the loading it needs (maps, models, decompositions) — what a firmware's `build.rs`
@@ -30,6 +32,7 @@
 #[cfg(feature = "codegen")]
 pub mod codegen;
 pub mod decompose;
+pub mod domain;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod experiments;
@@ -49,6 +52,9 @@ pub mod mrf;
 #[cfg(feature = "host")]
 pub mod noise;
 mod par;
+/// *(host)*
+#[cfg(feature = "host")]
+pub mod progress;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod render;

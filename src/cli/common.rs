@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use graphspn_compiler::decompose::{Decomposition, DecompositionStrategy};
+use graphspn_compiler::domain::DomainError;
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::instance::Instance;
 use graphspn_compiler::learn::Model;
@@ -185,6 +186,16 @@ pub fn count_decompositions_file(flag: &str, path: &Path) -> Result<usize> {
     Ok(count)
 }
 
+/// A setting outside its domain ([`graphspn_compiler::domain`]) as the error of the
+/// flag that gave it: `flags` maps setting paths to flags; a setting without a flag
+/// keeps its path.
+pub fn flag_error(e: DomainError, flags: &[(&str, &str)]) -> anyhow::Error {
+    match flags.iter().find(|(setting, _)| *setting == e.setting) {
+        Some((_, flag)) => anyhow::anyhow!("{flag} {}: {}", e.value, e.domain),
+        None => anyhow::anyhow!("{e}"),
+    }
+}
+
 /// Parses `--strategy` (`paper` or `cover`).
 pub fn parse_strategy(s: &str) -> Result<DecompositionStrategy, String> {
     DecompositionStrategy::from_name(s)
@@ -192,7 +203,7 @@ pub fn parse_strategy(s: &str) -> Result<DecompositionStrategy, String> {
 }
 
 /// Largest `--decompositions` accepted by `infer`, `instance`, `compile` and `decompose`.
-pub const MAX_DECOMPOSITIONS: usize = 1000;
+pub const MAX_DECOMPOSITIONS: usize = graphspn_compiler::decompose::MAX_DECOMPOSITIONS;
 
 /// Decompositions for `map`: read from `file` (a decompositions file, checked against
 /// the map and the model's templates) or made by the seeded decomposer.

@@ -122,7 +122,7 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
     let chosen = match &args.settings {
         Some(p) => {
             outputs.input("--settings", p);
-            let all = read_settings(p).with_context(|| format!("--settings {}", p.display()))?;
+            let all = read_settings(p)?;
             let key = match (&args.settings_of, all.len()) {
                 (Some(k), _) => k.clone(),
                 (None, 1) => all.keys().next().cloned().unwrap_or_default(),

@@ -164,21 +164,35 @@ pub fn is_generated_file(text: &str) -> bool {
     text.starts_with(GENERATED_MARKER)
 }
 
-/// Checks that `name` is a Rust identifier (ASCII letters, digits, `_`; not starting
-/// with a digit), as module names of generated files must be.
+/// Checks that `name` can name the generated module (`pub mod <name> { include!(...) }`):
+/// a Rust identifier (ASCII letters, digits, `_`; not starting with a digit), not `_`
+/// alone and not a keyword of any edition (strict, reserved, and `gen`, reserved in
+/// 2024), which would make that line fail to compile.
 pub fn check_module_name(name: &str) -> Result<(), BuildError> {
+    const KEYWORDS: &[&str] = &[
+        "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum",
+        "extern", "false", "fn", "for", "if", "impl", "in", "let", "loop", "match", "mod", "move",
+        "mut", "pub", "ref", "return", "self", "Self", "static", "struct", "super", "trait",
+        "true", "type", "unsafe", "use", "where", "while", "abstract", "become", "box", "do",
+        "final", "gen", "macro", "override", "priv", "try", "typeof", "unsized", "virtual",
+        "yield",
+    ];
     let ident = name
         .chars()
         .next()
         .is_some_and(|c| c == '_' || c.is_ascii_alphabetic())
         && name.chars().all(|c| c == '_' || c.is_ascii_alphanumeric());
-    if ident {
-        Ok(())
-    } else {
-        Err(BuildError::BadOption(format!(
-            "module name {name:?} is not a Rust identifier"
-        )))
+    if !ident || name == "_" {
+        return Err(BuildError::BadOption(format!(
+            "module name {name:?} is not a Rust identifier (letters, digits and _, not starting with a digit)"
+        )));
     }
+    if KEYWORDS.contains(&name) {
+        return Err(BuildError::BadOption(format!(
+            "module name {name:?} is a Rust keyword: `pub mod {name}` would not compile (e.g. {name}_map)"
+        )));
+    }
+    Ok(())
 }
 
 /// Refuses to replace an existing file that this generator did not write (see

@@ -8,14 +8,25 @@
 use super::Model;
 use crate::spn::{Node, Spn};
 
+/// Largest template temperature. Far beyond it every sum's largest weight takes all
+/// the mass (each sum becomes a maximum), which a temperature is not meant to do.
+pub const MAX_TEMPERATURE: f64 = 10.0;
+
 /// Why a temperature cannot be applied.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("template temperature must be finite and > 0, got {0}")]
+#[error("template temperature {0}: {domain}", domain = self.domain())]
 pub struct BadTemperature(pub f64);
 
-/// Checks a temperature (finite and > 0).
+impl BadTemperature {
+    /// The domain, e.g. `must be finite and in (0, 10]`.
+    pub fn domain(&self) -> String {
+        format!("must be finite and in (0, {MAX_TEMPERATURE}]")
+    }
+}
+
+/// Checks a temperature (finite, in (0, [`MAX_TEMPERATURE`]]).
 pub fn check_temperature(tau: f64) -> Result<(), BadTemperature> {
-    if tau.is_finite() && tau > 0.0 {
+    if tau.is_finite() && tau > 0.0 && tau <= MAX_TEMPERATURE {
         Ok(())
     } else {
         Err(BadTemperature(tau))
@@ -32,8 +43,18 @@ pub fn temper_spn(spn: &mut Spn, tau: f64) -> Result<(), BadTemperature> {
     }
     for node in &mut spn.nodes {
         if let Node::Sum { weights, .. } = node {
-            let powered: Vec<f64> = weights.iter().map(|w| w.powf(tau)).collect();
-            let z: f64 = powered.iter().sum();
+            let mut powered: Vec<f64> = weights.iter().map(|w| w.powf(tau)).collect();
+            let mut z: f64 = powered.iter().sum();
+            if !(z > 0.0 && z.is_finite()) {
+                // Every power under- or overflowed: the same ratios relative to the
+                // largest weight (whose power is then 1), so the temperature is
+                // applied, never skipped.
+                let max = weights.iter().copied().fold(0.0, f64::max);
+                if max > 0.0 {
+                    powered = weights.iter().map(|w| (w / max).powf(tau)).collect();
+                    z = powered.iter().sum();
+                }
+            }
             if z > 0.0 && z.is_finite() {
                 for (w, p) in weights.iter_mut().zip(powered) {
                     *w = p / z;

@@ -23,9 +23,7 @@
 //! EM). The M-step is `w_e ∝ count_e + s`.
 
 use std::collections::BTreeMap;
-use std::io::IsTerminal;
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 
 use super::settings::{EmKind, TrainingSettings};
@@ -36,32 +34,8 @@ use crate::spn::{Node, NodeId, Spn};
 // Shared with `symmetry` (sample checks), so it lives in `settings`, below both.
 pub use super::settings::TrainError;
 
-/// Whether to draw a progress bar.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Progress {
-    /// A bar on stderr when it is a terminal and `CI` is not set.
-    Auto,
-    /// Never draw.
-    Hidden,
-}
-
-impl Progress {
-    /// A progress bar of `len` steps, hidden unless drawing makes sense.
-    pub fn bar(self, len: u64, what: &str) -> ProgressBar {
-        let show = self == Progress::Auto
-            && std::io::stderr().is_terminal()
-            && std::env::var_os("CI").is_none();
-        if !show {
-            return ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
-        }
-        let bar = ProgressBar::new(len);
-        if let Ok(style) = ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg}") {
-            bar.set_style(style);
-        }
-        bar.set_prefix(what.to_string());
-        bar
-    }
-}
+/// Progress reporting, shared by every long step ([`crate::progress`]).
+pub use crate::progress::Progress;
 
 /// What training did, per epoch. Log-likelihoods are natural logs, averaged over
 /// the samples given (with multiplicity).
@@ -475,15 +449,9 @@ pub fn train_tied(
     orbits: &EdgeOrbits,
     progress: Progress,
 ) -> Result<TrainingReport, TrainError> {
-    let ok = |s: f64| s > 0.0 && s.is_finite();
-    if !ok(settings.smoothing_start) || !ok(settings.smoothing_end) {
-        return Err(TrainError::BadSettings(
-            "smoothing must be finite and > 0 (it keeps every weight positive)".into(),
-        ));
-    }
-    if settings.batch_size == 0 {
-        return Err(TrainError::BadSettings("batch_size must be ≥ 1".into()));
-    }
+    settings
+        .check()
+        .map_err(|e| TrainError::BadSettings(e.to_string()))?;
     check_samples(spn, samples)?;
     let flat = Flat::new(spn)?;
     let num_edges = flat.woff[spn.nodes.len()];

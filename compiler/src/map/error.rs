@@ -146,6 +146,12 @@ pub enum MapError {
         /// The folder.
         path: PathBuf,
     },
+    /// A sub-folder of a folder of maps that is not a COLD sequence.
+    #[error("{}: not a map: every folder among the maps must be a COLD sequence holding nodes.dat and rooms.dat (move it out, or name the maps one by one)", path.display())]
+    NotASequence {
+        /// The sub-folder.
+        path: PathBuf,
+    },
     /// Two places share an id.
     #[error("place id {id} appears twice")]
     DuplicatePlace {
