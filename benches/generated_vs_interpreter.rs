@@ -1,6 +1,8 @@
 //! Generated code vs the interpreter (instance SPN, `Evaluator`) on the same map and
 //! evidence, for `log_likelihood`, `marginals` and `mpe`, on the demo floor and on the
-//! largest COLD map (Saarbrücken seq2_night1, 230 places); prints the speed-up ratios
+//! largest COLD map (Saarbrücken seq2_night1, 230 places), for both model families (the
+//! GraphSPN, and the tree mixture `*_trees`, whose interpreter runs the explicit
+//! `instance_spn` with the evidence raised to the model's exponent); prints the speed-up ratios
 //! measured in this run, and for marginals also against the interpreter's batched mode
 //! (`marginals_batch`, time per query). Also the streaming state: one `observe` plus
 //! `marginals` of all places (or `marginal` of one place) vs one stateless
@@ -13,22 +15,51 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use criterion::Criterion;
-use graphspn::codegen::Builder;
+use graphspn::codegen::{AnyInputs, Builder};
 use graphspn::instance::Instance;
 use graphspn::interpreter::{BATCH, Evaluator, Evidence};
+use graphspn::spn::Spn;
+use graphspn::treemix::{TreeInstance, instance_spn};
+
+/// The explicit instance SPN of model file `model` on demo map `file` (as
+/// `generated/build.rs` compiles them: 5 seeded decompositions, or the tree mixture's
+/// seeded trees), its number of mixture components, and the exponent the evidence is
+/// raised to (1 for a GraphSPN).
+fn reference_spn(model: &str, file: &str) -> (Spn, usize, i32) {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo");
+    let builder = Builder::new(dir.join(model), dir.join(file)).seed(0);
+    // A tree mixture keeps its model's number of trees, as in `generated/build.rs`.
+    let builder = if model == "model.json" {
+        builder.count(5)
+    } else {
+        builder
+    };
+    match builder.load_any().expect("demo inputs") {
+        AnyInputs::Graphspn(i) => {
+            let d = i.decompositions.len();
+            (
+                Instance::build(&i.model, &i.map, i.decompositions)
+                    .unwrap()
+                    .spn,
+                d,
+                1,
+            )
+        }
+        AnyInputs::TreeMixture(i) => {
+            let t = i.trees.len();
+            let gamma = i.model.evidence_exponent as i32;
+            let inst = TreeInstance::build(&i.model, &i.map, i.trees).unwrap();
+            (instance_spn(&inst).unwrap(), t, gamma)
+        }
+    }
+}
 
 macro_rules! bench_map {
-    ($c:expr, $m:ident, $file:expr, $ratios:expr) => {{
+    ($c:expr, $m:ident, $model:expr, $file:expr, $ratios:expr) => {{
         use graphspn_generated::$m as g;
-        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo");
-        let inputs = Builder::new(dir.join("model.json"), dir.join($file))
-            .seed(0)
-            .count(5)
-            .load()
-            .expect("demo inputs");
-        assert_eq!(inputs.decompositions.len(), g::NUM_DECOMPOSITIONS);
-        let inst = Instance::build(&inputs.model, &inputs.map, inputs.decompositions).unwrap();
-        let mut eval = Evaluator::new(&inst.spn).unwrap();
+        let (spn, components, gamma) = reference_spn($model, $file);
+        assert_eq!(components, g::NUM_DECOMPOSITIONS);
+        let mut eval = Evaluator::new(&spn).unwrap();
         // Deterministic, informative evidence.
         let mut e: g::Evidence = [[0.0; g::NUM_CLASSES]; g::NUM_PLACES];
         for (p, row) in e.iter_mut().enumerate() {
@@ -38,7 +69,7 @@ macro_rules! bench_map {
         }
         let rows: Vec<Vec<f64>> = e
             .iter()
-            .map(|r| r.iter().map(|&x| f64::from(x)).collect())
+            .map(|r| r.iter().map(|&x| f64::from(x).powi(gamma)).collect())
             .collect();
         let ev = Evidence::from_rows(rows);
         let free = vec![None; g::NUM_PLACES];
@@ -153,13 +184,12 @@ macro_rules! bench_map {
 fn main() {
     let mut c = Criterion::default().configure_from_args();
     let mut ratios: Vec<String> = Vec::new();
-    bench_map!(c, demo_floor, "floor.json", ratios);
-    bench_map!(
-        c,
-        saarbrucken_seq2_night1,
-        "saarbrucken_seq2_night1.json",
-        ratios
-    );
+    let (graphspn, trees) = ("model.json", "tree_model.json");
+    let (floor, saarbrucken) = ("floor.json", "saarbrucken_seq2_night1.json");
+    bench_map!(c, demo_floor, graphspn, floor, ratios);
+    bench_map!(c, saarbrucken_seq2_night1, graphspn, saarbrucken, ratios);
+    bench_map!(c, demo_floor_trees, trees, floor, ratios);
+    bench_map!(c, saarbrucken_seq2_night1_trees, trees, saarbrucken, ratios);
     c.final_summary();
     println!("generated vs interpreter (time per call, interpreter / generated):");
     for r in &ratios {

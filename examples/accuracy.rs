@@ -50,9 +50,8 @@ fn main() -> Result<()> {
         ..TrainingSettings::default()
     };
     let (model, _) = train_model(&train, &Template::paper_set(), &settings, Progress::Hidden)?;
-    // The settings validation chose for two of the three test buildings.
+    // The settings validation chose for test building Stockholm.
     let mut tt = TreeTraining {
-        prior_exponent: -0.25,
         evidence_exponent: 3,
         ..TreeTraining::default()
     };

@@ -1,5 +1,6 @@
-//! Compiles the maps shipped in `demo/` with the model `demo/model.json` into
-//! `$OUT_DIR/<module>.rs` (one module per map, see `src/lib.rs`), and writes each
+//! Compiles the maps shipped in `demo/` with the GraphSPN model `demo/model.json` into
+//! `$OUT_DIR/<module>.rs` and with the tree mixture `demo/tree_model.json` into
+//! `$OUT_DIR/<module>_trees.rs` (two modules per map, see `src/lib.rs`), and writes each
 //! map's ground-truth labelling into `$OUT_DIR/<module>_truth.rs` for the examples.
 //! See `demo/README.md` for the commands that regenerate the inputs.
 
@@ -8,7 +9,9 @@ use std::path::{Path, PathBuf};
 
 use graphspn_compiler::codegen::{Builder, load_map, write_if_changed};
 
-/// Decompositions mixed at the root of every demo instance, and their seed.
+/// Decompositions mixed at the root of every demo GraphSPN instance, and their seed
+/// (also the seed of the tree mixture's spanning trees, whose number the model file
+/// gives).
 const COUNT: usize = 5;
 const SEED: u64 = 0;
 
@@ -27,12 +30,21 @@ fn main() {
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("set by cargo"));
     println!("cargo:rerun-if-changed=build.rs");
     let model = dir.join("demo/model.json");
+    let trees = dir.join("demo/tree_model.json");
     for &(module, file) in MAPS {
         let map = dir.join(file);
         if let Err(e) = Builder::new(&model, &map)
             .seed(SEED)
             .count(COUNT)
             .module_name(module)
+            .out_dir(&out)
+            .run()
+        {
+            panic!("graphspn-generated: {e}");
+        }
+        if let Err(e) = Builder::new(&trees, &map)
+            .seed(SEED)
+            .module_name(format!("{module}_trees"))
             .out_dir(&out)
             .run()
         {

@@ -9,10 +9,16 @@
 #   size      opt-level "s", the generated maps crate and its numerics at 3
 #   size-all  opt-level "s" everywhere (no override)
 #
+# Four modules: both demo maps, each compiled with the GraphSPN model and with the
+# tree mixture (`*_trees`).
+#
 # flash: bytes of machine code and tables of the map's generated module (symbol
-# sizes, `nm`), and in brackets the whole firmware's .text + .rodata (`size`);
-# RAM: the map's buffers in .bss (evidence, marginals, two label arrays, the
-# streaming state) + the largest peak stack of its calls. Stack and instructions per call:
+# sizes, `nm`), and in brackets the whole firmware's .text + .rodata (`size`); a tree
+# mixture's machine code is mostly the runtime's generic tree driver, whose
+# monomorphisations (all tree modules together) are printed below the tables;
+# RAM: the map's buffers (evidence, marginals, two label arrays, the streaming state;
+# the firmware's `buffers=`, one module's share of the .bss arena) + the largest peak
+# stack of its calls. Stack and instructions per call:
 # log_likelihood / marginals / mpe / labelled_log_likelihood. Streaming step: median
 # instructions of one `State::observe` + `marginals` (all places) and of one
 # `observe` + `marginal(place)`, with how many times fewer than one stateless
@@ -45,22 +51,18 @@ for p in "${PROFILES[@]}"; do
             -serial stdio -icount shift=0 -kernel "$elf" | tr -d '\r' >"$out/$t.$p.txt" ;;
         esac
         size -A "$elf" | awk '$1 == ".text" || $1 == ".rodata" { s += $2 } END { print "total", s }' >"$out/$t.$p.size"
-        # Bytes per map module: code (t/T) and tables (r/R/d/D) of its symbols; buffers (b/B).
+        # Bytes per map module: code (t/T) and tables (r/R/d/D) of its symbols; the tree driver.
         nm -S -t d -C "$elf" | awk '
-            NF >= 4 && $4 ~ /^graphspn_firmware(_maps)?::/ {
+            NF >= 4 && $4 ~ /^graphspn_firmware_maps::/ && $3 !~ /^[bB]$/ {
                 name = $4; sub(/^graphspn_firmware_maps::/, "", name); sub(/::.*/, "", name)
-                if ($4 ~ /^graphspn_firmware::calls::/) {
-                    name = ($4 ~ /saarbrucken/) ? "saarbrucken_seq2_night1" : "demo_floor"
-                }
-                # The firmware'"'"'s buffers (a State starts with rows of ones: .data).
-                if ($3 ~ /^[bB]$/ || ($3 ~ /^[dD]$/ && $4 ~ /^graphspn_firmware::calls::/)) ram[name] += $2 + 0
-                else if ($4 ~ /^graphspn_firmware_maps::/) flash[name] += $2 + 0
+                flash[name] += $2 + 0
             }
-            END { for (m in flash) print m, flash[m], ram[m] + 0 }' >>"$out/$t.$p.size"
+            NF >= 4 && $4 ~ /^graphspn_runtime::__private::tree::/ { tree += $2 + 0 }
+            END { for (m in flash) print m, flash[m]; print "tree_driver", tree + 0 }' >>"$out/$t.$p.size"
     done
 done
 
-for map in demo_floor saarbrucken_seq2_night1; do
+for map in demo_floor saarbrucken_seq2_night1 demo_floor_trees saarbrucken_seq2_night1_trees; do
     echo
     echo "### $map"
     echo
@@ -73,7 +75,7 @@ for map in demo_floor saarbrucken_seq2_night1; do
                     while ((getline l < sizes) > 0) {
                         split(l, f, " ")
                         if (f[1] == "total") total = f[2]
-                        else if (f[1] == map) { flash = f[2]; buffers = f[3] }
+                        else if (f[1] == map) flash = f[2]
                     }
                 }
                 function median(a, n,    i, j, x) {
@@ -84,7 +86,10 @@ for map in demo_floor saarbrucken_seq2_night1; do
                     }
                     return a[int(n / 2) + 1]
                 }
-                $1 == "map" { on = ($2 == map) }
+                $1 == "map" {
+                    on = ($2 == map)
+                    if (on) for (q = 3; q <= NF; q++) if ($q ~ /^buffers=/) buffers = substr($q, 9) + 0
+                }
                 on && $1 == "call" {
                     split($3, i, "="); split($4, s, "=")
                     ins = ins sep i[2]; st = st sep s[2]; sep = " / "
@@ -105,5 +110,13 @@ for map in demo_floor saarbrucken_seq2_night1; do
                         ma, full / ma, mo, full / mo
                 }' "$out/$t.$p.txt"
         done
+    done
+done
+echo
+echo "### tree-mixture driver (graphspn_runtime::__private::tree, every tree module's monomorphisations)"
+echo
+for t in "${TARGETS[@]}"; do
+    for p in "${PROFILES[@]}"; do
+        awk -v t="${t%%-*}" -v p="$p" '$1 == "tree_driver" { printf "- %s %s: %d bytes of machine code\n", t, p, $2 }' "$out/$t.$p.size"
     done
 done

@@ -112,3 +112,64 @@ fn empty_map_is_reported_with_its_file() {
     assert!(matches!(err, BuildError::EmptyMap { .. }), "{err}");
     assert!(err.to_string().contains("empty.json"), "{err}");
 }
+
+/// Tree mixtures through the same builder: the model file's family decides; `.count`
+/// overrides the number of trees, `.seed` seeds them; decompositions are refused and
+/// every error names the file.
+#[test]
+fn tree_mixture_models_compile_through_the_builder() {
+    let trees = demo().join("tree_model.json");
+    let floor = demo().join("floor.json");
+    let src = Builder::new(&trees, &floor)
+        .seed(0)
+        .count(2)
+        .generate()
+        .unwrap();
+    assert!(src.contains("pub const MODEL_FAMILY: &str = \"tree_mixture\";"));
+    assert!(src.contains("pub const NUM_TREES: usize = 2;"));
+    let other = Builder::new(&trees, &floor)
+        .seed(1)
+        .count(2)
+        .generate()
+        .unwrap();
+    assert_ne!(src, other, "the seed draws other trees");
+    // Decompositions belong to GraphSPNs.
+    let err = Builder::new(&trees, &floor)
+        .decompositions_file(demo().join("none.json"))
+        .generate()
+        .unwrap_err();
+    assert!(matches!(err, BuildError::BadOption(_)), "{err}");
+    assert!(err.to_string().contains("tree_model.json"), "{err}");
+    // Too many trees: the spanning-tree error names both files.
+    let err = Builder::new(&trees, &floor)
+        .count(0)
+        .generate()
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, BuildError::Trees { .. }), "{msg}");
+    assert!(
+        msg.contains("tree_model.json") && msg.contains("floor.json"),
+        "{msg}"
+    );
+    // A bad tree-mixture file names the file and the field.
+    let dir = tempfile::tempdir().unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&trees).unwrap()).unwrap();
+    v["unary"][2] = serde_json::json!(-1.0);
+    let bad = dir.path().join("bad_trees.json");
+    std::fs::write(&bad, v.to_string()).unwrap();
+    let err = Builder::new(&bad, &floor).generate().unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, BuildError::Model { .. }), "{msg}");
+    assert!(
+        msg.contains("bad_trees.json") && msg.contains("unary entry 2"),
+        "{msg}"
+    );
+    // The stack budget is enforced as for GraphSPNs.
+    let err = Builder::new(&trees, demo().join("saarbrucken_seq2_night1.json"))
+        .vectorisation(graphspn::codegen::Vectorisation::Scalar)
+        .max_stack_bytes(4096)
+        .generate()
+        .unwrap_err();
+    assert!(err.to_string().contains("budget of 4096 bytes"), "{err}");
+}

@@ -134,6 +134,60 @@ fn instance_exports_dot_and_compile_writes_generated_source() {
     assert_eq!(std::fs::read_to_string(&exported).unwrap(), "{}");
 }
 
+/// `graphspn compile` of a tree mixture: the same module API, the report on standard
+/// error, `--count` overriding the model's trees; GraphSPN-only options refused naming
+/// the model file.
+#[test]
+fn compile_writes_a_tree_mixture_module_and_reports_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("floor_trees.rs");
+    let run = bin()
+        .args([
+            "compile",
+            "--module",
+            "floor_trees",
+            "--scalar",
+            "--count",
+            "3",
+            "--model",
+        ])
+        .arg(demo("tree_model.json"))
+        .arg("--map")
+        .arg(demo("floor.json"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("tree mixture: 3 trees") && err.contains("stack per call"),
+        "{err}"
+    );
+    assert!(err.contains("3 spanning trees"), "{err}");
+    let src = std::fs::read_to_string(&out).unwrap();
+    assert!(src.contains("pub const MODEL_FAMILY: &str = \"tree_mixture\";"));
+    assert!(src.contains("pub const NUM_TREES: usize = 3;"));
+    for flags in [["--strategy", "cover"], ["--decompositions", "d.json"]] {
+        let run = bin()
+            .args(["compile", "--model"])
+            .arg(demo("tree_model.json"))
+            .arg("--map")
+            .arg(demo("floor.json"))
+            .args(flags)
+            .arg("--out")
+            .arg(dir.path().join("x.rs"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{flags:?}");
+        assert!(
+            err.contains("tree_model.json") && err.contains("tree mixture"),
+            "{flags:?}: {err}"
+        );
+    }
+}
+
 /// `graphspn validate` (tiny grid, one test building, shipped data) writes its table
 /// and settings, and `reproduce --settings` reuses them: the report names the
 /// validated settings and carries the tuned and paper-style baselines with intervals.

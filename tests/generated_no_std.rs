@@ -2,15 +2,17 @@
 //! `unsafe` and no panicking path. `graphspn-generated` is `#![no_std]` and
 //! `#![forbid(unsafe_code)]`, so std or alloc could only come in through an
 //! `extern crate` in the included, generated text: one test regenerates that text
-//! (same inputs as `generated/build.rs`, f32 and f64) and scans it; another links it
-//! into a `no_std` binary whose panic handler calls an undefined symbol.
+//! (same inputs as `generated/build.rs`, f32 and f64, GraphSPN and tree mixture) and
+//! scans it; another links it into a `no_std` binary whose panic handler calls an
+//! undefined symbol.
 
 mod no_panic_probe;
 
 use std::path::PathBuf;
 
+use graphspn::codegen::Vectorisation;
 use graphspn::codegen::{Builder, Precision, is_generated_file};
-use no_panic_probe::demo_source;
+use no_panic_probe::{demo_source, demo_tree_source_for};
 
 fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
@@ -24,8 +26,14 @@ fn generated_crate_is_no_std_without_alloc_unsafe_or_panics() {
     .unwrap();
     assert!(lib.contains("#![no_std]") && lib.contains("#![forbid(unsafe_code)]"));
     assert!(!lib.contains("extern crate"));
-    for precision in [Precision::F32, Precision::F64] {
-        let src = demo_source(precision);
+    let forms = [Precision::F32, Precision::F64].into_iter().flat_map(|p| {
+        [
+            (p, demo_source(p)),
+            (p, demo_tree_source_for(p, Vectorisation::Simd)),
+            (p, demo_tree_source_for(p, Vectorisation::Scalar)),
+        ]
+    });
+    for (precision, src) in forms {
         assert!(is_generated_file(&src));
         let scalar = match precision {
             Precision::F32 => "pub type Evidence = [[f32; NUM_CLASSES]; NUM_PLACES];",
@@ -60,6 +68,10 @@ fn same_inputs_give_byte_identical_output() {
         .seed(3)
         .count(4);
     assert_eq!(b.generate().unwrap(), b.clone().generate().unwrap());
+    let t = Builder::new(demo().join("tree_model.json"), demo().join("floor.json"))
+        .seed(3)
+        .count(3);
+    assert_eq!(t.generate().unwrap(), t.clone().generate().unwrap());
 }
 
 /// See [`no_panic_probe::link_check`]; the Cortex-M4F build of the same probe runs in

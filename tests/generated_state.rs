@@ -1,22 +1,27 @@
-//! The streaming `State` of generated modules against the stateless functions and
-//! the interpreter: random sequences of `set_evidence` / `observe` / `clear_evidence`
-//! (rows with exact zeros, 1e-30 scales, one-hot rows, rows of ones, invalid rows
-//! that must be rejected without changing anything) on the demo floor and three
-//! COLD maps including the 230-place one, in `f32` (scalar and SIMD) and `f64`.
+//! The streaming `State` of generated modules of both model families (GraphSPN and tree
+//! mixture) against the stateless functions and the interpreter: random sequences of
+//! `set_evidence` / `observe` / `clear_evidence` (rows with exact zeros, 1e-30 scales,
+//! one-hot rows, rows of ones, invalid rows that must be rejected without changing
+//! anything) on the demo floor and three COLD maps including the 230-place one, in
+//! `f32` (scalar and SIMD) and `f64`.
 //!
 //! After every step the generated binary compares the state's log-likelihood,
 //! marginals, one place's `marginal` and MPE value with the stateless functions on
 //! the state's evidence; every few steps it also writes the state's evidence and its
-//! answers, which the interpreter then checks ([`common::check_case`]). A long run of
-//! 100,000 updates on the 230-place map checks that the cache does not drift.
+//! answers, which the interpreter then checks ([`common::check_case`];
+//! [`common::trees::check_tree_case`] for tree mixtures: `TreeInstance` too). A long
+//! run of 100,000 updates on the 230-place map (each family) checks that the cache does
+//! not drift.
 mod common;
 
 use std::path::PathBuf;
 use std::process::Command;
 
+use common::trees::{TreeCase, check_tree_case};
 use common::{Case, Variant, build_crate_with, check_case, env_usize, stride};
 use graphspn::decompose::{DecompositionParams, decompose_best};
 use graphspn::learn::Model;
+use graphspn::treemix::{SpanningTrees, TreeMixture};
 
 /// Updates per sequence.
 const STEPS: usize = 1_000;
@@ -180,6 +185,7 @@ fn main() {
     std::thread::scope(|s| {
         DISPATCH
         s.spawn(|| run::<s_big_f32_scalar::Map>(dir, "drift_big_f32_scalar"));
+        s.spawn(|| run::<t_big_f32_scalar::Map>(dir, "drift_tbig_f32_scalar"));
     });
 }
 "#;
@@ -189,6 +195,7 @@ fn state_matches_stateless_and_interpreter() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let demo = root.join("generated/demo");
     let model = Model::load(demo.join("model.json")).unwrap();
+    let tree_model = TreeMixture::load(demo.join("tree_model.json")).unwrap();
     let steps = env_usize("GRAPHSPN_STATE_STEPS", STEPS);
     let drift = env_usize("GRAPHSPN_STATE_DRIFT_STEPS", DRIFT_STEPS);
     let data = root.join("data/cold-topomaps");
@@ -208,6 +215,7 @@ fn state_matches_stateless_and_interpreter() {
         maps.push((seq.replace('/', "_").to_lowercase(), map));
     }
     let mut cases = Vec::new();
+    let mut tree_cases = Vec::new();
     for (i, (name, map)) in maps.into_iter().enumerate() {
         let decs = decompose_best(
             &map,
@@ -225,6 +233,17 @@ fn state_matches_stateless_and_interpreter() {
             1 => vec![Variant::F32_SCALAR, Variant::F64],
             _ => vec![Variant::F32_SCALAR],
         };
+        tree_cases.push(TreeCase {
+            name: format!("t_{name}"),
+            model: tree_model.clone(),
+            trees: SpanningTrees::covering(&map, tree_model.trees, i as u64).unwrap(),
+            map: map.clone(),
+            variants: variants.clone(),
+            vectors: 0,
+            seed: 2000 + i as u64,
+            interpreter_every: 1,
+            extreme_every: 0,
+        });
         cases.push(Case {
             name: format!("s_{name}"),
             model: model.clone(),
@@ -249,9 +268,18 @@ fn state_matches_stateless_and_interpreter() {
             modules.push((case.module(v), src));
         }
     }
+    for case in &tree_cases {
+        for v in &case.variants {
+            modules.push((case.module(v), case.source(v)));
+        }
+    }
     // The drift run (`drift_big_f32_scalar` in MAIN) reuses the 230-place map's
     // scalar f32 module (the microcontroller form).
     assert_eq!(cases[1].module(&Variant::F32_SCALAR), "s_big_f32_scalar");
+    assert_eq!(
+        tree_cases[1].module(&Variant::F32_SCALAR),
+        "t_big_f32_scalar"
+    );
     let bin = build_crate_with(dir.path(), "generated_state", &modules, MAIN);
     let seed = 42u64;
     eprintln!("state sequences: seed {seed}, {steps} steps per module, drift run {drift} steps");
@@ -268,43 +296,73 @@ fn state_matches_stateless_and_interpreter() {
         String::from_utf8_lossy(&run.stderr)
     );
     eprintln!("{}", String::from_utf8_lossy(&run.stdout));
-    // The snapshots against the interpreter.
+    // The snapshots against the interpreter (and `TreeInstance`).
+    let snapshots = |name: &str, n: usize, c: usize| {
+        let ev = std::fs::read(dir.path().join(format!("{name}.ev"))).unwrap();
+        let count = u64::from_le_bytes(ev[..8].try_into().unwrap()) as usize;
+        assert!(count >= 20, "{name}: only {count} snapshots");
+        let vals: Vec<f64> = ev[8..]
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        let per = n * c + n;
+        let evs: Vec<Vec<Vec<f64>>> = (0..count)
+            .map(|s| {
+                (0..n)
+                    .map(|p| vals[s * per + p * c..s * per + (p + 1) * c].to_vec())
+                    .collect()
+            })
+            .collect();
+        let out: Vec<f64> = std::fs::read(dir.path().join(format!("{name}.out")))
+            .unwrap()
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        assert_eq!(out.len(), count * stride(n, c));
+        (evs, out)
+    };
     for case in &cases {
         let (n, c) = (case.map.num_places(), case.model.classes.len());
         for v in &case.variants {
             let name = case.module(v);
-            let ev = std::fs::read(dir.path().join(format!("{name}.ev"))).unwrap();
-            let count = u64::from_le_bytes(ev[..8].try_into().unwrap()) as usize;
-            assert!(count >= 20, "{name}: only {count} snapshots");
-            let vals: Vec<f64> = ev[8..]
-                .chunks_exact(8)
-                .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
-                .collect();
-            let per = n * c + n;
-            let evs: Vec<Vec<Vec<f64>>> = (0..count)
-                .map(|s| {
-                    (0..n)
-                        .map(|p| vals[s * per + p * c..s * per + (p + 1) * c].to_vec())
-                        .collect()
-                })
-                .collect();
-            let out: Vec<f64> = std::fs::read(dir.path().join(format!("{name}.out")))
-                .unwrap()
-                .chunks_exact(8)
-                .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
-                .collect();
-            assert_eq!(out.len(), count * stride(n, c));
+            let (evs, out) = snapshots(&name, n, c);
             let one = Case {
                 name: case.name.clone(),
                 model: case.model.clone(),
                 map: case.map.clone(),
                 decs: case.decs.clone(),
                 variants: vec![*v],
-                vectors: count,
+                vectors: evs.len(),
                 seed: case.seed,
             };
             check_case(&one, &evs, &[out]);
-            eprintln!("{name}: {count} state snapshots agree with the interpreter");
+            eprintln!(
+                "{name}: {} state snapshots agree with the interpreter",
+                evs.len()
+            );
+        }
+    }
+    for case in &tree_cases {
+        let (n, c) = (case.map.num_places(), case.model.num_classes());
+        for v in &case.variants {
+            let name = case.module(v);
+            let (evs, out) = snapshots(&name, n, c);
+            let one = TreeCase {
+                name: case.name.clone(),
+                model: case.model.clone(),
+                map: case.map.clone(),
+                trees: case.trees.clone(),
+                variants: vec![*v],
+                vectors: evs.len(),
+                seed: case.seed,
+                interpreter_every: 1,
+                extreme_every: 0,
+            };
+            check_tree_case(&one, &evs, &[out]);
+            eprintln!(
+                "{name}: {} state snapshots agree with TreeInstance and the interpreter",
+                evs.len()
+            );
         }
     }
 }

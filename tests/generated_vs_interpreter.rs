@@ -13,7 +13,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::{
-    Case, Variant, case_evidence, check_case, differential, env_usize, probe_labels, stride,
+    Case, Variant, case_evidence, check_case, differential, env_usize, in_process_answers,
 };
 use graphspn::codegen::Builder;
 use graphspn::decompose::{DecompositionParams, decompose_best};
@@ -75,31 +75,7 @@ fn demo_floor_matches_interpreter() {
         seed: 1,
     };
     let evs = case_evidence(&case);
-    let (n, c) = (demo_floor::NUM_PLACES, demo_floor::NUM_CLASSES);
-    let mut vals = Vec::with_capacity(evs.len() * stride(n, c));
-    let mut e: demo_floor::Evidence = [[0.0; demo_floor::NUM_CLASSES]; demo_floor::NUM_PLACES];
-    let mut marg = e;
-    let mut lab = [0u16; demo_floor::NUM_PLACES];
-    let mut probe = [demo_floor::UNKNOWN; demo_floor::NUM_PLACES];
-    for (v, ev) in evs.iter().enumerate() {
-        for (row, src) in e.iter_mut().zip(ev) {
-            for (x, &s) in row.iter_mut().zip(src) {
-                *x = s as f32;
-            }
-        }
-        for (l, p) in probe.iter_mut().zip(probe_labels(ev, v)) {
-            *l = p.map_or(demo_floor::UNKNOWN, |k| k as u16);
-        }
-        let ll = demo_floor::log_likelihood(&e).map_or(f64::NAN, f64::from);
-        let mv = demo_floor::mpe(&e, &mut lab).map_or(f64::NAN, f64::from);
-        let pl = demo_floor::labelled_log_likelihood(&probe, &e).map_or(f64::NAN, f64::from);
-        let _ = demo_floor::marginals(&e, &mut marg);
-        vals.push(ll);
-        vals.push(mv);
-        vals.push(pl);
-        vals.extend(lab.iter().map(|&l| f64::from(l)));
-        vals.extend(marg.iter().flatten().map(|&x| f64::from(x)));
-    }
+    let vals = in_process_answers::<demo_floor::Map>(&evs);
     check_case(&case, &evs, &[vals]);
     eprintln!(
         "demo_floor: {} vectors (seed {}) agree with the interpreter",

@@ -2,7 +2,8 @@
 //! Cortex-M4F (`thumbv7em-none-eabihf`, QEMU `netduinoplus2`) and RV32IMAC
 //! (`riscv32imac-unknown-none-elf`, QEMU `virt`), and for the host at the x86-64
 //! baseline (SSE2, no FMA); runs each (QEMU with `-icount shift=0`, bounded time),
-//! parses the reports and checks, for both maps and all four entry points:
+//! parses the reports and checks, for both maps compiled with both model families
+//! (GraphSPN and tree mixture) and all four entry points:
 //!
 //! - both MCU builds give exactly the bits of the host's baseline build (same
 //!   arithmetic: separate multiply and add, `libm` for exp/ln);
@@ -11,8 +12,11 @@
 //!   vectors use fused multiply-adds, so its bits differ in the last places; the
 //!   differences are printed) and with the interpreter, at the differential tests'
 //!   tolerances (1e-4 relative for log-likelihoods and MPE values, 1e-4 absolute for
-//!   marginals; the MPE labels must attain the interpreter's best value);
+//!   marginals; the MPE labels must attain the interpreter's best value; tree
+//!   mixtures against `TreeInstance`, the exact f64 reference);
 //! - peak stack per call ≤ the bound below, statics + stack ≤ the board's 128 KiB;
+//! - the tree mixture of the 230-place map on Cortex-M4F: `marginals` ≤ 2 M
+//!   instructions, every call ≤ 16 KiB of stack, `STATE_BYTES` ≤ 64 KiB;
 //! - the instruction counter is exact to a few instructions on a loop of known size.
 //!
 //! The no-panic link check of `generated_no_std.rs` runs here for
@@ -31,22 +35,37 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use graphspn::codegen::Builder;
+use graphspn::codegen::{AnyInputs, Builder};
 use graphspn::instance::Instance;
 use graphspn::interpreter::{Evaluator, Evidence};
-use graphspn_generated::{demo_floor, saarbrucken_seq2_night1};
+use graphspn::treemix::TreeInstance;
+use graphspn_generated::{
+    demo_floor, demo_floor_trees, saarbrucken_seq2_night1, saarbrucken_seq2_night1_trees,
+};
 
-/// The generator's stack bounds of the firmware's scalar module of map `file`
+/// The firmware's `Builder` of module `name` (as its build script has it): the
+/// GraphSPN of the demo model with 5 decompositions, or (`*_trees`) the demo tree
+/// mixture; scalar code, seed 0.
+fn firmware_builder(name: &str) -> Builder {
+    let demo = root().join("generated/demo");
+    let map = demo.join(map_file(name));
+    if name.ends_with("_trees") {
+        Builder::new(demo.join("tree_model.json"), map)
+    } else {
+        Builder::new(demo.join("model.json"), map).count(5)
+    }
+    .vectorisation(graphspn::codegen::Vectorisation::Scalar)
+    .seed(0)
+}
+
+/// The generator's stack bounds of the firmware's scalar module `name`
 /// (`STACK_BYTES_*` of the module: log-likelihood, marginals, MPE, labelled
 /// log-likelihood, and last the streaming state's calls), computed by the same
 /// `Builder` the firmware's build script uses.
-fn stack_bounds(file: &str) -> [usize; 5] {
-    let demo = root().join("generated/demo");
-    let b = graphspn::codegen::Builder::new(demo.join("model.json"), demo.join(file))
-        .vectorisation(graphspn::codegen::Vectorisation::Scalar)
-        .seed(0)
-        .count(5);
-    let (_, r) = b.report_from(&b.load().unwrap()).unwrap();
+fn stack_bounds(name: &str) -> [usize; 5] {
+    let b = firmware_builder(name);
+    let (_, r) = b.report_from_any(&b.load_any().unwrap()).unwrap();
+    let file = map_file(name);
     assert!(
         r.stack_marginals <= 16 * 1024,
         "{file}: bound {} > 16 KiB",
@@ -108,6 +127,8 @@ struct MapReport {
     stream: Vec<(Call, Option<usize>)>,
     /// The state's marginals after the last step (`f32` bits, one row per place).
     state_marginals: Vec<Vec<u32>>,
+    /// `STATE_BYTES` of the module (`state=` of the `map` line).
+    state_bytes: Option<usize>,
 }
 
 /// A parsed firmware report.
@@ -164,6 +185,9 @@ fn parse(text: &str) -> Report {
                 mpe: vec![],
                 stream: vec![],
                 state_marginals: vec![],
+                state_bytes: line
+                    .split_whitespace()
+                    .find_map(|w| w.strip_prefix("state=")?.parse().ok()),
             }),
             Some("call") => {
                 let call = call(words.next().unwrap(), line);
@@ -444,16 +468,94 @@ fn close(a: f64, b: f64) -> bool {
 }
 
 fn map_file(name: &str) -> &'static str {
-    match name {
+    match name.trim_end_matches("_trees") {
         "demo_floor" => "floor.json",
         "saarbrucken_seq2_night1" => "saarbrucken_seq2_night1.json",
         _ => panic!("unknown map {name}"),
     }
 }
 
+/// The tree mixture's reference (`TreeInstance`) of firmware module `name` with
+/// evidence `rows` (`f32` rows, widened).
+fn tree_reference(name: &str, rows: &[Vec<f32>]) -> TreeInstance {
+    let AnyInputs::TreeMixture(i) = firmware_builder(name).load_any().unwrap() else {
+        panic!("{name} is not a tree mixture");
+    };
+    let mut inst = TreeInstance::build(&i.model, &i.map, i.trees).unwrap();
+    let wide: Vec<Vec<f64>> = rows
+        .iter()
+        .map(|r| r.iter().map(|&x| f64::from(x)).collect())
+        .collect();
+    inst.set_all_evidence(&wide).unwrap();
+    inst
+}
+
+/// The value call `i` of map `m` returned (panics naming the call on an error).
+fn call_value(target: &str, m: &MapReport, i: usize) -> f64 {
+    let call = &m.calls[i];
+    f64::from(f32::from_bits(*call.value.as_ref().unwrap_or_else(|e| {
+        panic!("{target} {} {}: error {e}", m.name, call.name)
+    })))
+}
+
+/// [`check_map`] for a tree-mixture module: every call against `TreeInstance` (the
+/// interpreter's instance SPN is checked against it in `generated_trees.rs`).
+fn check_tree_map(target: &str, m: &MapReport, index: u64) {
+    let (n, c) = (m.places, m.classes);
+    let (rows, labels) = inputs(index, n, c, u16::MAX);
+    let rows: Vec<Vec<f32>> = rows.chunks(c).map(<[f32]>::to_vec).collect();
+    let inst = tree_reference(&m.name, &rows);
+    let ctx = |what: &str| format!("{target} {} {what}", m.name);
+    let value = |i: usize| call_value(target, m, i);
+    let want = inst.marginals().unwrap();
+    for i in [0, 1] {
+        let w = want.mixed.log_likelihood;
+        assert!(close(value(i), w), "{}: {} vs {w}", ctx("ll"), value(i));
+    }
+    for (p, row) in m.marginals.iter().enumerate() {
+        for (k, &bits) in row.iter().enumerate() {
+            let (got, w) = (f64::from(f32::from_bits(bits)), want.mixed.probs[p][k]);
+            assert!(
+                (got - w).abs() <= TOL,
+                "{}: {p}/{k}: {got} vs {w}",
+                ctx("marginals")
+            );
+        }
+    }
+    let best = inst.mpe(&vec![None; n]).unwrap().log_max_product;
+    assert!(
+        close(value(2), best),
+        "{}: {} vs {best}",
+        ctx("mpe"),
+        value(2)
+    );
+    let fixed: Vec<Option<u16>> = m.mpe.iter().map(|&l| Some(l)).collect();
+    let attained = inst.mpe(&fixed).unwrap().log_max_product;
+    assert!(
+        close(attained, best),
+        "{}: labels attain {attained}",
+        ctx("mpe")
+    );
+    let probe: Vec<Option<u16>> = labels
+        .iter()
+        .map(|&l| (l != u16::MAX).then_some(l))
+        .collect();
+    let want_l = inst.log_likelihood_labelled(&probe).unwrap();
+    assert!(
+        close(value(3), want_l),
+        "{}: {} vs {want_l}",
+        ctx("labelled"),
+        value(3)
+    );
+}
+
 /// Checks one map of an MCU report against the interpreter (tolerances) and returns
 /// how many of its numbers differ in bits from `host` (the x86-64-v3 build).
 fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usize {
+    if m.name.ends_with("_trees") {
+        check_tree_map(target, m, index);
+        return compare_with_host(target, m, host);
+    }
     let demo = root().join("generated/demo");
     let inputs_ = Builder::new(demo.join("model.json"), demo.join(map_file(&m.name)))
         .seed(0)
@@ -472,15 +574,7 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     );
     let free = vec![None; n];
     let ctx = |what: &str| format!("{target} {} {what}", m.name);
-    let value = |i: usize| -> f64 {
-        let call = &m.calls[i];
-        f64::from(f32::from_bits(
-            *call
-                .value
-                .as_ref()
-                .unwrap_or_else(|e| panic!("{}: error {e}", ctx(&call.name))),
-        ))
-    };
+    let value = |i: usize| call_value(target, m, i);
     let names: Vec<&str> = m.calls.iter().map(|c| c.name.as_str()).collect();
     assert_eq!(
         names,
@@ -541,6 +635,20 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
         value(3)
     );
     // The x86-64-v3 host build: same tolerances, and count differing bits.
+    compare_with_host(target, m, host)
+}
+
+/// How many of a map's numbers differ in bits from the x86-64-v3 host build `host`
+/// (all within the tolerances).
+fn compare_with_host(target: &str, m: &MapReport, host: &HostAnswers) -> usize {
+    let ctx = |what: &str| format!("{target} {} {what}", m.name);
+    let names = [
+        "log_likelihood",
+        "marginals",
+        "mpe",
+        "labelled_log_likelihood",
+    ];
+    let value = |i: usize| f64::from(f32::from_bits(*m.calls[i].value.as_ref().unwrap()));
     let mut differ = 0;
     for (i, h) in host.values.iter().enumerate() {
         let h = h
@@ -642,7 +750,7 @@ macro_rules! host_stream {
 
 /// Checks one map's streaming steps against the host build's replay (values within
 /// the tolerances, same places) and the state's final marginals against the
-/// interpreter on the state's final evidence.
+/// interpreter on the state's final evidence (`TreeInstance` for a tree mixture).
 fn check_stream(target: &str, m: &MapReport, host: &HostStream) {
     let ctx = |what: &str| format!("{target} {} stream {what}", m.name);
     assert_eq!(m.stream.len(), host.values.len(), "{}", ctx("steps"));
@@ -671,6 +779,21 @@ fn check_stream(target: &str, m: &MapReport, host: &HostStream) {
         };
         assert!(ok, "{}: step {i}: {got} vs host {want}", ctx(&call.name));
     }
+    if m.name.ends_with("_trees") {
+        let want = tree_reference(&m.name, &host.evidence).marginals().unwrap();
+        for (p, row) in m.state_marginals.iter().enumerate() {
+            for (k, &bits) in row.iter().enumerate() {
+                let got = f64::from(f32::from_bits(bits));
+                let (w, h) = (want.mixed.probs[p][k], f64::from(host.marginals[p][k]));
+                assert!(
+                    (got - w).abs() <= TOL && (got - h).abs() <= TOL,
+                    "{}: place {p} class {k}: {got} vs TreeInstance {w} and host {h}",
+                    ctx("final marginals")
+                );
+            }
+        }
+        return;
+    }
     let demo = root().join("generated/demo");
     let inputs_ = Builder::new(demo.join("model.json"), demo.join(map_file(&m.name)))
         .seed(0)
@@ -698,6 +821,41 @@ fn check_stream(target: &str, m: &MapReport, host: &HostStream) {
                 host.marginals[p][k]
             );
         }
+    }
+}
+
+/// The tree mixture of the 230-place map fits a small microcontroller: on Cortex-M4F
+/// `marginals` takes at most 2 M instructions, every call at most 16 KiB of stack, and
+/// the streaming state at most 64 KiB (the generator's figure is the module's).
+fn check_tree_acceptance(target: &str, r: &Report) {
+    let m = r
+        .maps
+        .iter()
+        .find(|m| m.name == "saarbrucken_seq2_night1_trees")
+        .expect("the 230-place tree mixture");
+    let state = m.state_bytes.expect("state= in the map line");
+    let b = firmware_builder(&m.name);
+    let (_, report) = b.report_from_any(&b.load_any().unwrap()).unwrap();
+    assert_eq!(
+        report.state_bytes, state,
+        "{target}: the report's state bytes"
+    );
+    assert!(state <= 64 * 1024, "{target}: STATE_BYTES {state} > 64 KiB");
+    let calls = m.calls.iter().chain(m.stream.iter().map(|(c, _)| c));
+    for c in calls {
+        assert!(
+            c.stack <= 16 * 1024,
+            "{target} {}: {} bytes of stack",
+            c.name,
+            c.stack
+        );
+    }
+    if target == THUMB {
+        let marginals = m.calls[1].instructions;
+        assert!(
+            marginals <= 2_000_000,
+            "{target}: marginals of the 230-place tree mixture take {marginals} instructions"
+        );
     }
 }
 
@@ -742,22 +900,29 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
     let hosts = [
         host_answers!(demo_floor, 0),
         host_answers!(saarbrucken_seq2_night1, 1),
+        host_answers!(demo_floor_trees, 2),
+        host_answers!(saarbrucken_seq2_night1_trees, 3),
     ];
     let streams = [
         host_stream!(demo_floor, 0),
         host_stream!(saarbrucken_seq2_night1, 1),
+        host_stream!(demo_floor_trees, 2),
+        host_stream!(saarbrucken_seq2_night1_trees, 3),
     ];
     let bounds = [
-        stack_bounds(map_file("demo_floor")),
-        stack_bounds(map_file("saarbrucken_seq2_night1")),
-    ];
+        "demo_floor",
+        "saarbrucken_seq2_night1",
+        "demo_floor_trees",
+        "saarbrucken_seq2_night1_trees",
+    ]
+    .map(stack_bounds);
     for (target, r) in &reports {
         let (loop_n, measured, _) = r.calibration;
         assert!(
             measured.abs_diff(loop_n) <= 16,
             "{target}: the counter gives {measured} instructions for a loop of {loop_n}"
         );
-        assert_eq!(r.maps.len(), 2, "{target}: maps");
+        assert_eq!(r.maps.len(), 4, "{target}: maps");
         assert_eq!(
             results(r),
             results(&baseline),
@@ -805,6 +970,7 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
             "{target}: statics {} + peak stack {peak} exceed {RAM_BYTES} bytes of RAM",
             r.static_ram
         );
+        check_tree_acceptance(target, r);
     }
     eprintln!(
         "firmware builds {:.1} s, all runs and checks {:.1} s",
@@ -871,7 +1037,7 @@ fn generated_code_links_for_cortex_m4f_without_any_panic_path() {
 #[test]
 fn report_parser_reads_every_record() {
     let text = "firmware x\ncalibration loop_instructions=8 measured=9 overhead=1\nram static=100\n\
-                map m places=2 classes=2\ncall log_likelihood instructions=5 stack=64 value=3f800000\n\
+                map m places=2 classes=2 buffers=64 state=32\ncall log_likelihood instructions=5 stack=64 value=3f800000\n\
                 call mpe instructions=6 stack=32 error=ZeroLikelihood\n\
                 marginals 0 3f000000 3f000000\nmarginals 1 3f800000 00000000\nmpe 1 0\n\
                 stream set_all instructions=7 stack=16 value=3f800000\n\
@@ -881,7 +1047,7 @@ fn report_parser_reads_every_record() {
     assert_eq!(r.calibration, (8, 9, 1));
     assert_eq!(r.static_ram, 100);
     let m = &r.maps[0];
-    assert_eq!((m.places, m.classes), (2, 2));
+    assert_eq!((m.places, m.classes, m.state_bytes), (2, 2, Some(32)));
     assert_eq!(m.calls[0].value, Ok(0x3f80_0000));
     assert_eq!(m.calls[1].value, Err("ZeroLikelihood".into()));
     assert_eq!(m.marginals[1], [0x3f80_0000, 0]);

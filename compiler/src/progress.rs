@@ -107,28 +107,40 @@ impl Lines {
         )
     }
 
-    fn inc(&self, n: u64) {
+    /// Counts `n` more units and returns the line to print now, if one is due.
+    fn advance(&self, n: u64) -> Option<String> {
         let pos = self.pos.fetch_add(n, Ordering::Relaxed) + n;
         let tenth = (pos * 10).checked_div(self.len).unwrap_or(10);
-        let Ok(mut last) = self.last.lock() else {
-            return;
-        };
+        let mut last = self.last.lock().ok()?;
         let since = last.at.elapsed();
         let due = (tenth > last.tenth && since >= LINE_INTERVAL) || since >= QUIET_INTERVAL;
-        if due && pos < self.len {
-            eprintln!("{}", self.line(pos));
-            *last = Printed {
-                at: Instant::now(),
-                tenth,
-                any: true,
-            };
+        if !due || pos >= self.len {
+            return None;
+        }
+        *last = Printed {
+            at: Instant::now(),
+            tenth,
+            any: true,
+        };
+        Some(self.line(pos))
+    }
+
+    /// The last line of the step, if it printed any or took long.
+    fn last_line(&self) -> Option<String> {
+        let any = self.last.lock().map(|l| l.any).unwrap_or(false);
+        (any || self.start.elapsed() >= LINE_INTERVAL)
+            .then(|| self.line(self.pos.load(Ordering::Relaxed)))
+    }
+
+    fn inc(&self, n: u64) {
+        if let Some(line) = self.advance(n) {
+            eprintln!("{line}");
         }
     }
 
     fn finish(&self) {
-        let any = self.last.lock().map(|l| l.any).unwrap_or(false);
-        if any || self.start.elapsed() >= LINE_INTERVAL {
-            eprintln!("{}", self.line(self.pos.load(Ordering::Relaxed)));
+        if let Some(line) = self.last_line() {
+            eprintln!("{line}");
         }
     }
 }
@@ -158,5 +170,56 @@ impl Bar {
             Bar::Terminal(b) => b.finish_and_clear(),
             Bar::Lines(l) => l.finish(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step of `len` units that started `ago` and last printed `ago`.
+    fn lines(len: u64, ago: Duration) -> Lines {
+        let then = Instant::now() - ago;
+        Lines {
+            what: "test graphs".into(),
+            len,
+            pos: AtomicU64::new(0),
+            start: then,
+            last: Mutex::new(Printed {
+                at: then,
+                tenth: 0,
+                any: false,
+            }),
+        }
+    }
+
+    #[test]
+    fn without_a_terminal_progress_is_plain_lines() {
+        // Under `cargo test` standard error is captured, never a terminal.
+        assert!(matches!(Progress::Auto.bar(10, "x"), Bar::Lines(_)));
+        assert!(matches!(Progress::Hidden.bar(10, "x"), Bar::Hidden));
+    }
+
+    #[test]
+    fn a_line_per_tenth_at_most_every_interval_and_after_a_silence() {
+        let l = lines(100, LINE_INTERVAL + Duration::from_millis(50));
+        let first = l.advance(10).expect("a tenth done after the interval");
+        assert!(first.starts_with("test graphs 10/100 ("), "{first}");
+        // Right after a line: nothing, even for another tenth.
+        assert_eq!(l.advance(10), None);
+        // A long silence prints even without a new tenth.
+        l.last.lock().unwrap().at = Instant::now() - QUIET_INTERVAL;
+        assert!(l.advance(1).unwrap().starts_with("test graphs 21/100"));
+        // The end is the last line's job.
+        l.last.lock().unwrap().at = Instant::now() - QUIET_INTERVAL;
+        assert_eq!(l.advance(79), None);
+        assert!(l.last_line().unwrap().starts_with("test graphs 100/100"));
+    }
+
+    #[test]
+    fn a_short_quiet_step_prints_nothing() {
+        let l = lines(4, Duration::ZERO);
+        assert_eq!(l.advance(4), None);
+        assert_eq!(l.last_line(), None);
     }
 }

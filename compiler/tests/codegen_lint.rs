@@ -84,6 +84,9 @@ fn emitters_use_quote() {
         "wiring/mod.rs",
         "wiring/api.rs",
         "wiring/state.rs",
+        "surface.rs",
+        "trees/mod.rs",
+        "trees/api.rs",
     ] {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("src/codegen")

@@ -1,5 +1,5 @@
 //! Tree mixtures: the host evaluator (`TreeInstance`) and the interpreter on the
-//! explicit instance SPN against brute-force enumeration on maps of at most 7 places,
+//! explicit instance SPN against brute-force enumeration on maps of at most 8 places,
 //! for every query; the forests (spanning, covering, centred); the model file.
 
 mod common;
@@ -41,10 +41,10 @@ fn rows(n: usize, c: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
 
 #[test]
 fn every_query_matches_enumeration_and_the_interpreter() {
-    let mut checked = 0;
+    let (mut checked, mut largest) = (0, 0);
     for seed in 0..60u64 {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let n = rng.random_range(1..=7);
+        let n = rng.random_range(1..=8);
         let c = rng.random_range(2..=3);
         let t = rng.random_range(1..=4);
         let gamma = rng.random_range(1..=3);
@@ -136,8 +136,10 @@ fn every_query_matches_enumeration_and_the_interpreter() {
             );
         }
         checked += 1;
+        largest = largest.max(n);
     }
     assert_eq!(checked, 60);
+    assert_eq!(largest, 8, "the draws reach 8-place maps");
 }
 
 #[test]

@@ -1,12 +1,14 @@
-//! Compiles the repository's demo maps with the demo model, exactly as
-//! `generated/build.rs` does (f32, seed 0, 5 decompositions): the firmware's results
-//! can then be compared with the host build of `graphspn-generated`.
+//! Compiles the repository's demo maps with the demo models, exactly as
+//! `generated/build.rs` does (the GraphSPN: f32, seed 0, 5 decompositions; the tree
+//! mixture: f32, trees seeded with 0): the firmware's results can then be compared
+//! with the host build of `graphspn-generated`.
 
 use std::path::PathBuf;
 
 use graphspn_compiler::codegen::{Builder, Vectorisation};
 
-/// `(module name, map file under ../../generated/demo/)`.
+/// `(module name, map file under ../../generated/demo/)`; each map is compiled with
+/// both models (the tree mixture's module is `<name>_trees`).
 const MAPS: &[(&str, &str)] = &[
     ("demo_floor", "floor.json"),
     ("saarbrucken_seq2_night1", "saarbrucken_seq2_night1.json"),
@@ -27,6 +29,15 @@ fn main() {
             .seed(0)
             .count(5)
             .module_name(module)
+            .run()
+        {
+            panic!("graphspn-firmware-maps: {e}");
+        }
+        // The tree mixture: its number of trees comes from the model file.
+        if let Err(e) = Builder::new(demo.join("tree_model.json"), demo.join(file))
+            .vectorisation(Vectorisation::Scalar)
+            .seed(0)
+            .module_name(format!("{module}_trees"))
             .run()
         {
             panic!("graphspn-firmware-maps: {e}");

@@ -1,12 +1,20 @@
 //! Every call into the generated API, and the storage it works on, lives here (and
 //! only here): when the generated signatures change, this is the one module to adapt.
 //!
-//! Each map gets a zero-sized type implementing [`Compiled`], whose entry points take
-//! no arguments and work on the map's buffers in `.bss` (evidence, labels,
-//! marginals, MPE labels, the streaming `State`), so the firmware can time them and
-//! measure their stack uniformly.
+//! Each compiled module (both maps, each with both model families: the GraphSPN and
+//! the tree mixture have the same API) gets a zero-sized type implementing
+//! [`Compiled`], whose entry points take no arguments and work on the module's buffers
+//! (evidence, labels, marginals, MPE labels, the streaming `State`), so the firmware
+//! can time them and measure their stack uniformly. The modules run one after the
+//! other, so their buffers share one static arena in `.bss` ([`Compiled::start`]
+//! resets it for the next module): the four sets would not fit the board's 128 KiB
+//! of RAM side by side.
 
-use graphspn_firmware_maps::{demo_floor, saarbrucken_seq2_night1};
+use core::mem::{ManuallyDrop, MaybeUninit};
+
+use graphspn_firmware_maps::{
+    demo_floor, demo_floor_trees, saarbrucken_seq2_night1, saarbrucken_seq2_night1_trees,
+};
 use graphspn_runtime::EvidenceError;
 
 /// Result of one generated call: the `f32` it returns (a log-likelihood or
@@ -41,6 +49,13 @@ pub trait Compiled {
     const CLASSES: usize;
     /// The "unknown" label.
     const UNKNOWN: u16;
+    /// Bytes of the module's buffers (its share of the arena).
+    const BUFFER_BYTES: usize;
+    /// Bytes of the module's streaming `State` (`STATE_BYTES`).
+    const STATE_BYTES: usize;
+    /// Resets the arena to this module's buffers (zeros, a new `State`); call before
+    /// any other entry point of the module.
+    fn start();
     /// Runs `f` on the map's buffers. Not re-entrant: never call it, or an entry
     /// point, from inside `f`.
     fn with_views<R>(f: impl FnOnce(Views<'_>) -> R) -> R;
@@ -65,8 +80,8 @@ pub trait Compiled {
     fn state_marginals() -> CallResult;
 }
 
-/// Implements [`Compiled`] for module `$m` as type `$ty`, with its buffers in a
-/// `static mut` of type `$buf`.
+/// Implements [`Compiled`] for module `$m` as type `$ty`, with its buffers (type
+/// `$buf`) in the arena.
 macro_rules! compiled {
     ($ty:ident, $buf:ident, $m:ident) => {
         /// The map
@@ -74,7 +89,8 @@ macro_rules! compiled {
         /// with its buffers.
         pub struct $ty;
 
-        struct $buf {
+        /// The module's buffers.
+        pub struct $buf {
             evidence: $m::Evidence,
             labels: $m::Labels,
             marginals: $m::Marginals,
@@ -85,23 +101,29 @@ macro_rules! compiled {
             one: [f32; $m::NUM_CLASSES],
         }
 
-        static mut BUFFERS_OF_MAP: $buf = $buf {
-            evidence: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
-            labels: [0; $m::NUM_PLACES],
-            marginals: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
-            mpe: [0; $m::NUM_PLACES],
-            state: $m::State::new(),
-            step_row: [0.0; $m::NUM_CLASSES],
-            step_place: 0,
-            one: [0.0; $m::NUM_CLASSES],
-        };
+        impl $buf {
+            /// Fresh buffers: zeros and a new `State` (all zeros too).
+            const NEW: $buf = $buf {
+                evidence: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
+                labels: [0; $m::NUM_PLACES],
+                marginals: [[0.0; $m::NUM_CLASSES]; $m::NUM_PLACES],
+                mpe: [0; $m::NUM_PLACES],
+                state: $m::State::new(),
+                step_row: [0.0; $m::NUM_CLASSES],
+                step_place: 0,
+                one: [0.0; $m::NUM_CLASSES],
+            };
+        }
 
         impl $ty {
-            /// The buffers. The firmware is single-threaded and no caller keeps the
-            /// reference beyond one call, so there is never a second live one.
+            /// The buffers in the arena. The firmware is single-threaded, runs one
+            /// module at a time (after its `start`) and no caller keeps the reference
+            /// beyond one call, so there is never a second live one.
             fn buffers() -> &'static mut $buf {
-                // SAFETY: see above; interrupts (SysTick) never touch the buffers.
-                unsafe { &mut *(&raw mut BUFFERS_OF_MAP) }
+                // SAFETY: see above; the arena is a union of every module's buffers
+                // (size and alignment fit), `start` wrote this module's buffers into it,
+                // and interrupts (SysTick) never touch it.
+                unsafe { &mut *(&raw mut ARENA).cast::<$buf>() }
             }
         }
 
@@ -110,6 +132,12 @@ macro_rules! compiled {
             const PLACES: usize = $m::NUM_PLACES;
             const CLASSES: usize = $m::NUM_CLASSES;
             const UNKNOWN: u16 = $m::UNKNOWN;
+            const BUFFER_BYTES: usize = core::mem::size_of::<$buf>();
+            const STATE_BYTES: usize = $m::STATE_BYTES;
+            fn start() {
+                // SAFETY: as in `buffers`; writing a whole value needs no previous one.
+                unsafe { (&raw mut ARENA).cast::<$buf>().write($buf::NEW) }
+            }
             fn with_views<R>(f: impl FnOnce(Views<'_>) -> R) -> R {
                 let b = Self::buffers();
                 f(Views {
@@ -176,5 +204,28 @@ mod saarbrucken {
     use super::*;
     compiled!(Saarbrucken, Buffers, saarbrucken_seq2_night1);
 }
+mod floor_trees {
+    use super::*;
+    compiled!(DemoFloorTrees, Buffers, demo_floor_trees);
+}
+mod saarbrucken_trees {
+    use super::*;
+    compiled!(SaarbruckenTrees, Buffers, saarbrucken_seq2_night1_trees);
+}
 pub use floor::DemoFloor;
+pub use floor_trees::DemoFloorTrees;
 pub use saarbrucken::Saarbrucken;
+pub use saarbrucken_trees::SaarbruckenTrees;
+
+/// Room for the buffers of any one module (a union: the size and alignment of the
+/// largest).
+#[allow(dead_code)]
+union Arena {
+    floor: ManuallyDrop<floor::Buffers>,
+    saarbrucken: ManuallyDrop<saarbrucken::Buffers>,
+    floor_trees: ManuallyDrop<floor_trees::Buffers>,
+    saarbrucken_trees: ManuallyDrop<saarbrucken_trees::Buffers>,
+}
+
+/// The buffers of the module being run (uninitialised until its `start`: `.bss`).
+static mut ARENA: MaybeUninit<Arena> = MaybeUninit::uninit();

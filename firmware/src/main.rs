@@ -1,6 +1,7 @@
-//! A firmware that runs every generated entry point of the compiled demo maps on
-//! fixed evidence ([`evidence`]) and prints, per call, the result's exact bits, the
-//! instructions it executed and its peak stack (stack painting).
+//! A firmware that runs every generated entry point of the compiled demo maps (each
+//! with both model families: GraphSPN and tree mixture) on fixed evidence
+//! ([`evidence`]) and prints, per call, the result's exact bits, the instructions it
+//! executed and its peak stack (stack painting).
 //!
 //! Targets (see `../README.md`, "Firmware"):
 //! - `thumbv7em-none-eabihf`: Cortex-M4F on QEMU's `netduinoplus2` (STM32F405,
@@ -16,7 +17,7 @@
 //! firmware <target>
 //! calibration loop_instructions=<n> measured=<n> overhead=<n>
 //! ram static=<bytes of .data + .bss>
-//! map <name> places=<n> classes=<n>
+//! map <name> places=<n> classes=<n> buffers=<bytes> state=<bytes>
 //! call <entry point> instructions=<n> stack=<bytes> value=<f32 bits, hex>|error=<e>
 //! marginals <place> <f32 bits, hex> ...
 //! mpe <label> ...
@@ -49,7 +50,7 @@ mod stack;
 
 use core::fmt::Write;
 
-use calls::{CallResult, Compiled, DemoFloor, Saarbrucken};
+use calls::{CallResult, Compiled, DemoFloor, DemoFloorTrees, Saarbrucken, SaarbruckenTrees};
 
 #[cfg(not(target_os = "none"))]
 fn main() {
@@ -77,17 +78,22 @@ pub fn run(out: &mut impl Write) -> core::fmt::Result {
     writeln!(out, "ram static={}", platform::static_ram())?;
     run_map::<DemoFloor>(out, evidence::SEED)?;
     run_map::<Saarbrucken>(out, evidence::SEED + 1)?;
+    run_map::<DemoFloorTrees>(out, evidence::SEED + 2)?;
+    run_map::<SaarbruckenTrees>(out, evidence::SEED + 3)?;
     writeln!(out, "done")
 }
 
 fn run_map<M: Compiled>(out: &mut impl Write, seed: u64) -> core::fmt::Result {
+    M::start();
     M::with_views(|v| evidence::fill(seed, M::CLASSES, v.evidence, v.labels, M::UNKNOWN));
     writeln!(
         out,
-        "map {} places={} classes={}",
+        "map {} places={} classes={} buffers={} state={}",
         M::NAME,
         M::PLACES,
-        M::CLASSES
+        M::CLASSES,
+        M::BUFFER_BYTES,
+        M::STATE_BYTES
     )?;
     let calls: [(&str, fn() -> CallResult); 4] = [
         ("log_likelihood", M::log_likelihood),

@@ -2,7 +2,9 @@
 
 use crate::EvidenceError;
 
-/// A GraphSPN instance compiled for one known map by `graphspn-compiler`.
+/// A model of one known map compiled by `graphspn-compiler`: a GraphSPN instance
+/// (template SPNs mixed over decompositions of the map) or a tree mixture (exact
+/// spanning-forest models mixed at the root); both offer the same API.
 ///
 /// Evidence is one row per place (place order, see [`CompiledMap::PLACE_IDS`]),
 /// each row holding one non-negative likelihood per class. Rows are the
@@ -17,11 +19,14 @@ pub trait CompiledMap {
     type Scalar: Copy + PartialOrd + Default + core::fmt::Debug + 'static;
     /// One row of evidence or marginals: `[Self::Scalar; NUM_CLASSES]`.
     type Row: Copy + AsRef<[Self::Scalar]> + AsMut<[Self::Scalar]> + 'static;
+    /// The model family (`"graphspn"` or `"tree_mixture"`).
+    const MODEL_FAMILY: &'static str;
     /// Number of places of the map.
     const NUM_PLACES: usize;
     /// Number of classes per place.
     const NUM_CLASSES: usize;
-    /// Number of decompositions mixed at the root (uniform weights).
+    /// Number of mixture components at the root (uniform weights): decompositions of
+    /// the map (GraphSPN) or spanning trees (tree mixture).
     const NUM_DECOMPOSITIONS: usize;
     /// User-facing id of each place, in place order.
     const PLACE_IDS: &'static [u32];
@@ -29,9 +34,11 @@ pub trait CompiledMap {
     const CLASS_NAMES: &'static [&'static str];
     /// A row of zeros, to initialise evidence and marginal buffers in generic code.
     const ZERO_ROW: Self::Row;
-    /// Components evaluated per template call (SIMD lanes; 1 = scalar code).
+    /// SIMD lanes of the generated code (1 = scalar code): components per template call
+    /// (GraphSPN) or classes per lane vector (tree mixture).
     const LANES: usize;
-    /// Distinct components (template copies) of the map.
+    /// Distinct components of the map: template copies (GraphSPN), trees × places (tree
+    /// mixture).
     const NUM_COMPONENTS: usize;
     /// Upper bound of the stack (bytes) of `log_likelihood` / `labelled_log_likelihood`.
     const STACK_BYTES_LOG_LIKELIHOOD: usize;
@@ -74,7 +81,8 @@ pub trait CompiledMap {
     ) -> Result<Self::Scalar, EvidenceError>;
 
     /// Streaming: sets the evidence row of place index `place` and updates the cache
-    /// (only the components containing the place are re-evaluated).
+    /// (only the components containing the place, or its paths to the roots, are
+    /// re-evaluated).
     fn set_evidence(
         s: &mut Self::State,
         place: usize,
@@ -97,7 +105,8 @@ pub trait CompiledMap {
         out: &mut [Self::Row],
     ) -> Result<Self::Scalar, EvidenceError>;
 
-    /// Streaming: the marginal of one place, from the cache (`O(D·C)`).
+    /// Streaming: the marginal of one place, from the cache (GraphSPN: `O(D·C)`; tree
+    /// mixture: `O(T·height·C²)`, a walk from each root to the place).
     fn state_marginal(
         s: &mut Self::State,
         place: usize,

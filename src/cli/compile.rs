@@ -1,17 +1,21 @@
-//! `graphspn compile`: compile the GraphSPN of a known map into a Rust source file.
+//! `graphspn compile`: compile the model of a known map — a GraphSPN (mixed over
+//! decompositions) or a tree mixture (mixed over spanning trees) — into a Rust source
+//! file with the same API either way.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::codegen::{
-    Builder, Precision, Vectorisation, check_module_name, is_generated_file,
+    AnyInputs, Builder, CodeReport, Precision, Vectorisation, check_module_name, is_generated_file,
 };
+use graphspn_compiler::family::AnyModel;
+use graphspn_compiler::treemix::model::MAX_TREES;
 
 use super::budget::{Budget, Work, read_map_within};
 use super::common::{
     check_decomposition_count, count_decompositions_file, declare_map, decompositions_for,
-    load_model, parse_strategy,
+    load_any_model, parse_strategy,
 };
 
 /// Largest map `compile` takes: the generator's limit (its tables index places with
@@ -28,11 +32,15 @@ use graphspn_compiler::decompose::DecompositionStrategy;
   graphspn compile --model generated/demo/model.json --map generated/demo/floor.json --module floor --out src/floor.rs
   graphspn decompose --model model.json --map floor.json --out floor.decompositions.json
   graphspn compile --model model.json --map floor.json --decompositions floor.decompositions.json --out src/floor.rs
+  graphspn compile --model generated/demo/tree_model.json --map generated/demo/floor.json --seed 0 --module floor_trees --out src/floor_trees.rs
 
-An existing --out file is replaced without --force only if graphspn generated it."
+The model may be a GraphSPN (mixed over decompositions: --decompositions, or --seed,
+--count, --strategy) or a tree mixture (mixed over spanning trees: --seed, and --count
+overrides the model's number of trees). An existing --out file is replaced without
+--force only if graphspn generated it."
 )]
 pub struct CompileArgs {
-    /// Model file (JSON, from `graphspn train`).
+    /// Model file (JSON, from `graphspn train`): a GraphSPN or a tree mixture.
     #[arg(long)]
     model: PathBuf,
     /// Map: a JSON map file or a COLD sequence folder (nodes.dat + rooms.dat).
@@ -41,16 +49,18 @@ pub struct CompileArgs {
     /// Decompositions file (from `graphspn decompose`); default: seeded decompositions.
     #[arg(long, conflicts_with_all = ["seed", "count"])]
     decompositions: Option<PathBuf>,
-    /// Seed of the decompositions.
+    /// Seed of the decompositions, or of a tree mixture's spanning trees.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// How decompositions are drawn: `paper` (the authors' scheme) or `cover` (frontier
-    /// places join their neighbour's component rather than stay alone).
-    #[arg(long, default_value = "paper", value_parser = parse_strategy, conflicts_with = "decompositions")]
-    strategy: DecompositionStrategy,
-    /// Number of decompositions mixed at the root (1..=1000).
-    #[arg(long, default_value_t = 5)]
-    count: usize,
+    /// How decompositions are drawn: `paper` (the authors' scheme, the default) or
+    /// `cover` (frontier places join their neighbour's component rather than stay
+    /// alone). GraphSPN only.
+    #[arg(long, value_parser = parse_strategy, conflicts_with = "decompositions")]
+    strategy: Option<DecompositionStrategy>,
+    /// Number of decompositions mixed at the root (1..=1000, default 5), or of a tree
+    /// mixture's spanning trees (1..=64, default: the model's).
+    #[arg(long)]
+    count: Option<usize>,
     /// Generate f64 code (default f32).
     #[arg(long)]
     f64: bool,
@@ -85,7 +95,6 @@ fn holds(path: &Path, content: &[u8]) -> bool {
 /// Runs `graphspn compile`.
 pub fn run(args: CompileArgs) -> Result<()> {
     check_module_name(&args.module).context("--module")?;
-    check_decomposition_count("--count", args.count)?;
     let mut outputs = Outputs::new(args.force);
     outputs.input("--model", &args.model);
     if !args.map.exists() {
@@ -110,39 +119,55 @@ pub fn run(args: CompileArgs) -> Result<()> {
     outputs.file_replacing("--out", &args.out, generated)?;
     // The inputs are read and checked here, as by every other command (errors name the
     // flag, file, line, template and node), before the builder reads them again.
-    let model = load_model(&args.model)?;
-    let budget = match &args.decompositions {
-        Some(f) => {
-            let count = count_decompositions_file("--decompositions", f)?;
+    let model = load_any_model(&args.model)?;
+    // What will be built, its counts checked and its size estimated before the map is
+    // read: a map too large for it is refused while it is read.
+    let budget = match &model {
+        AnyModel::Graphspn(_) => match &args.decompositions {
+            Some(f) => {
+                let count = count_decompositions_file("--decompositions", f)?;
+                Budget::new(
+                    format!("--decompositions {} ({count} decompositions)", f.display()),
+                    Work::Decompositions {
+                        count,
+                        candidates: 0,
+                    },
+                )
+            }
+            None => {
+                let count = args.count.unwrap_or(5);
+                check_decomposition_count("--count", count)?;
+                Budget::new(format!("--count {count}"), Work::decompositions(count))
+            }
+        },
+        AnyModel::TreeMixture(t) => {
+            if args.decompositions.is_some() || args.strategy.is_some() {
+                bail!(
+                    "--model {} is a tree mixture: it is mixed over spanning trees (--seed, --count), not decompositions (--decompositions, --strategy)",
+                    args.model.display()
+                );
+            }
+            let trees = match args.count {
+                Some(count) if !(1..=MAX_TREES).contains(&count) => {
+                    bail!("--count {count}: a tree mixture takes 1 to {MAX_TREES} trees")
+                }
+                Some(count) => count,
+                None => t.trees,
+            };
             Budget::new(
-                format!("--decompositions {} ({count} decompositions)", f.display()),
-                Work::Decompositions {
-                    count,
-                    candidates: 0,
+                format!("--count {trees}"),
+                Work::Trees {
+                    trees,
+                    classes: t.classes.len(),
                 },
             )
         }
-        None => Budget::new(
-            format!("--count {}", args.count),
-            Work::decompositions(args.count),
-        ),
     }
     .place_limit(
         MAX_COMPILED_PLACES,
         "at most 65535 places can be compiled (the generated code indexes places with 16 bits)",
     );
     let map = read_map_within("--map", &map_path, &budget)?.map;
-    let decompositions = match &args.decompositions {
-        Some(f) => Some(decompositions_for(
-            &model,
-            &map,
-            Some(f),
-            1,
-            0,
-            DecompositionStrategy::Paper,
-        )?),
-        None => None,
-    };
     let mut b = Builder::new(&args.model, &args.map)
         .module_name(&args.module)
         .out_file(&args.out)
@@ -161,16 +186,37 @@ pub fn run(args: CompileArgs) -> Result<()> {
     if let Some(bytes) = args.max_stack_bytes {
         b = b.max_stack_bytes(bytes);
     }
-    b = match decompositions {
-        Some(d) => b.decompositions(d),
-        None => b.seed(args.seed).count(args.count).strategy(args.strategy),
+    b = match &model {
+        AnyModel::Graphspn(model) => {
+            let strategy = args.strategy.unwrap_or(DecompositionStrategy::Paper);
+            match &args.decompositions {
+                Some(f) => b.decompositions(decompositions_for(
+                    model,
+                    &map,
+                    Some(f),
+                    1,
+                    0,
+                    DecompositionStrategy::Paper,
+                )?),
+                None => b
+                    .seed(args.seed)
+                    .count(args.count.unwrap_or(5))
+                    .strategy(strategy),
+            }
+        }
+        AnyModel::TreeMixture(_) => {
+            if let Some(count) = args.count {
+                b = b.count(count);
+            }
+            b.seed(args.seed)
+        }
     };
-    let inputs = b.load()?;
-    let map_json = inputs.map.to_json();
+    let inputs = b.load_any()?;
+    let map_json = inputs.map().to_json();
     if let Some(path) = &args.export_map {
         outputs.file_replacing("--export-map", path, holds(path, map_json.as_bytes()))?;
     }
-    let (code, r) = b.report_from(&inputs)?;
+    let (code, r) = b.report_from_any(&inputs)?;
     let mut files: Vec<(&Path, &[u8])> = Vec::new();
     if !holds(&args.out, code.as_bytes()) {
         files.push((&args.out, code.as_bytes()));
@@ -181,10 +227,52 @@ pub fn run(args: CompileArgs) -> Result<()> {
         files.push((path, map_json.as_bytes()));
     }
     write_files(&files)?;
+    eprintln!("{}", describe(&inputs, &r));
     eprintln!(
-        "{} components, {} lane(s) per call; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} evaluation unit(s) (lane groups, or components in scalar code) on average",
-        r.components,
-        r.lanes,
+        "wrote {}: {} places, {} classes, {} {}, {} bytes",
+        args.out.display(),
+        inputs.map().num_places(),
+        model.classes().len(),
+        inputs.components(),
+        match inputs {
+            AnyInputs::Graphspn(_) => "decompositions",
+            AnyInputs::TreeMixture(_) => "spanning trees",
+        },
+        code.len()
+    );
+    eprintln!(
+        "use it with: pub mod {} {{ include!({:?}); }}",
+        args.module,
+        args.out.display().to_string()
+    );
+    Ok(())
+}
+
+/// The generator's report as one line (stack bounds, state and table bytes,
+/// multiply-adds, the cost of a state update).
+fn describe(inputs: &AnyInputs, r: &CodeReport) -> String {
+    let (what, units) = match inputs {
+        AnyInputs::Graphspn(_) => (
+            format!("{} components, {} lane(s) per call", r.components, r.lanes),
+            "evaluation unit(s) (lane groups, or components in scalar code)",
+        ),
+        AnyInputs::TreeMixture(i) => (
+            format!(
+                "tree mixture: {} trees of height {}, {} class lane(s) per vector",
+                i.trees.len(),
+                i.trees
+                    .forests
+                    .iter()
+                    .map(|f| f.height().to_string())
+                    .collect::<Vec<_>>()
+                    .join("/"),
+                r.lanes
+            ),
+            "places on its paths to the roots, over all trees,",
+        ),
+    };
+    format!(
+        "{what}; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} {units} on average",
         r.stack_log_likelihood,
         r.stack_marginals,
         r.stack_mpe,
@@ -196,19 +284,5 @@ pub fn run(args: CompileArgs) -> Result<()> {
         r.macs_mpe,
         r.macs_observe_marginals,
         r.units_per_update
-    );
-    eprintln!(
-        "wrote {}: {} places, {} classes, {} decompositions, {} bytes",
-        args.out.display(),
-        inputs.map.num_places(),
-        inputs.model.classes.len(),
-        inputs.decompositions.len(),
-        code.len()
-    );
-    eprintln!(
-        "use it with: pub mod {} {{ include!({:?}); }}",
-        args.module,
-        args.out.display().to_string()
-    );
-    Ok(())
+    )
 }

@@ -172,6 +172,41 @@ pub fn probe_labels(e: &[Vec<f64>], v: usize) -> Vec<Option<u32>> {
         .collect()
 }
 
+/// The answers of module `M` (an `f32` module of this process, e.g. from
+/// `graphspn-generated`) to evidence vectors `evs`, as the temporary crate's binary
+/// writes them (per vector see [`stride`]; NaN on error).
+pub fn in_process_answers<M: graphspn_runtime::CompiledMap<Scalar = f32>>(
+    evs: &[Vec<Vec<f64>>],
+) -> Vec<f64> {
+    let (n, c) = (M::NUM_PLACES, M::NUM_CLASSES);
+    let mut vals = Vec::with_capacity(evs.len() * stride(n, c));
+    let mut e = vec![M::ZERO_ROW; n];
+    let mut marg = vec![M::ZERO_ROW; n];
+    let mut lab = vec![0u16; n];
+    for (v, ev) in evs.iter().enumerate() {
+        for (row, src) in e.iter_mut().zip(ev) {
+            for (x, &s) in row.as_mut().iter_mut().zip(src) {
+                *x = s as f32;
+            }
+        }
+        let probe: Vec<u16> = probe_labels(ev, v)
+            .into_iter()
+            .map(|p| p.map_or(u16::MAX, |k| k as u16))
+            .collect();
+        let nan = f64::NAN;
+        vals.push(M::log_likelihood(&e).map_or(nan, f64::from));
+        vals.push(M::mpe(&e, &mut lab).map_or(nan, f64::from));
+        vals.push(M::labelled_log_likelihood(&probe, &e).map_or(nan, f64::from));
+        let _ = M::marginals(&e, &mut marg);
+        vals.extend(lab.iter().map(|&l| f64::from(l)));
+        vals.extend(
+            marg.iter()
+                .flat_map(|r| r.as_ref().iter().map(|&x| f64::from(x))),
+        );
+    }
+    vals
+}
+
 /// Results per evidence vector: log-likelihood, MPE value, labelled log-likelihood
 /// (NaN on error), then `n` MPE labels and `n × c` marginals.
 pub fn stride(n: usize, c: usize) -> usize {
@@ -345,15 +380,18 @@ fn close(a: f64, b: f64, rel: f64) -> bool {
     a == b || (a - b).abs() <= rel * b.abs().max(1.0)
 }
 
-/// Generates, builds and runs every variant of every case, then checks them against
-/// the interpreter (see [`check_case`]). Returns the generated modules (name, source).
-pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
+/// The generated modules of one map (name and source of each variant) and the
+/// evidence vectors they all run on.
+pub type Prepared = (Vec<(String, String)>, Vec<Vec<Vec<f64>>>);
+
+/// Writes the evidence file of every module (see [`MAIN`]), builds all modules into one
+/// crate, runs it and returns, per map and module, its results (per vector see
+/// [`stride`]).
+pub fn run_modules(crate_name: &str, maps: &[Prepared]) -> Vec<Vec<Vec<f64>>> {
     let dir = tempfile::tempdir().unwrap();
-    let mut modules = vec![];
-    let mut inputs = vec![];
-    for case in cases {
-        let evs = case_evidence(case);
-        let mut bytes = (case.vectors as u64).to_le_bytes().to_vec();
+    let mut all = vec![];
+    for (modules, evs) in maps {
+        let mut bytes = (evs.len() as u64).to_le_bytes().to_vec();
         for (v, e) in evs.iter().enumerate() {
             for x in e.iter().flatten() {
                 bytes.extend_from_slice(&x.to_le_bytes());
@@ -363,21 +401,12 @@ pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
                 bytes.extend_from_slice(&l.to_le_bytes());
             }
         }
-        for variant in &case.variants {
-            let opts = CodegenOptions {
-                precision: variant.precision,
-                vectorisation: variant.vectorisation,
-                ..Default::default()
-            };
-            let name = case.module(variant);
-            let src = generate(&case.model, &case.map, &case.decs, &opts)
-                .unwrap_or_else(|e| panic!("{name}: {e}"));
+        for (name, src) in modules {
             std::fs::write(dir.path().join(format!("{name}.ev")), &bytes).unwrap();
-            modules.push((name, src));
+            all.push((name.clone(), src.clone()));
         }
-        inputs.push(evs);
     }
-    let bin = build_crate(dir.path(), crate_name, &modules);
+    let bin = build_crate(dir.path(), crate_name, &all);
     let run = Command::new(&bin).arg(dir.path()).output().unwrap();
     assert!(
         run.status.success(),
@@ -388,21 +417,50 @@ pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
     eprint!(
         "generated code, seconds for all queries (ll + mpe + labelled ll + marginals):\n{timing}"
     );
-    for (case, evs) in cases.iter().zip(&inputs) {
+    maps.iter()
+        .map(|(modules, _)| {
+            modules
+                .iter()
+                .map(|(name, _)| {
+                    std::fs::read(dir.path().join(format!("{name}.out")))
+                        .unwrap()
+                        .chunks_exact(8)
+                        .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Generates, builds and runs every variant of every case, then checks them against
+/// the interpreter (see [`check_case`]). Returns the generated modules (name, source).
+pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
+    let prepared: Vec<Prepared> = cases
+        .iter()
+        .map(|case| {
+            let modules = case
+                .variants
+                .iter()
+                .map(|variant| {
+                    let opts = CodegenOptions {
+                        precision: variant.precision,
+                        vectorisation: variant.vectorisation,
+                        ..Default::default()
+                    };
+                    let name = case.module(variant);
+                    let src = generate(&case.model, &case.map, &case.decs, &opts)
+                        .unwrap_or_else(|e| panic!("{name}: {e}"));
+                    (name, src)
+                })
+                .collect();
+            (modules, case_evidence(case))
+        })
+        .collect();
+    let results = run_modules(crate_name, &prepared);
+    for ((case, (_, evs)), vals) in cases.iter().zip(&prepared).zip(&results) {
         let start = Instant::now();
-        let vals: Vec<Vec<f64>> = case
-            .variants
-            .iter()
-            .map(|v| {
-                let out = dir.path().join(format!("{}.out", case.module(v)));
-                std::fs::read(out)
-                    .unwrap()
-                    .chunks_exact(8)
-                    .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
-                    .collect()
-            })
-            .collect();
-        check_case(case, evs, &vals);
+        check_case(case, evs, vals);
         eprintln!(
             "{} ({} variants): {} places, {} vectors (seed {}) agree with the interpreter ({:.1} s)",
             case.name,
@@ -413,7 +471,7 @@ pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
             start.elapsed().as_secs_f64()
         );
     }
-    modules
+    prepared.into_iter().flat_map(|(m, _)| m).collect()
 }
 
 /// The evidence vectors of a case, rounded through `f32` when some variant is `f32`
@@ -609,3 +667,4 @@ fn check_batch(
         }
     }
 }
+pub mod trees;

@@ -19,7 +19,18 @@ pub fn demo_source(precision: Precision) -> String {
 
 /// [`demo_source`] in the given form (scalar: the microcontroller form).
 pub fn demo_source_for(precision: Precision, v: Vectorisation) -> String {
-    Builder::new(demo().join("model.json"), demo().join("floor.json"))
+    demo_model_source("model.json", precision, v)
+}
+
+/// The demo floor's tree-mixture module (`tree_model.json`, as `generated/build.rs`
+/// compiles it) in the given form.
+pub fn demo_tree_source_for(precision: Precision, v: Vectorisation) -> String {
+    demo_model_source("tree_model.json", precision, v)
+}
+
+/// The demo floor compiled with the model file `model` in the given form.
+fn demo_model_source(model: &str, precision: Precision, v: Vectorisation) -> String {
+    Builder::new(demo().join(model), demo().join("floor.json"))
         .seed(0)
         .count(5)
         .precision(precision)
@@ -29,8 +40,9 @@ pub fn demo_source_for(precision: Precision, v: Vectorisation) -> String {
 }
 
 /// A `#![no_std]`, `#![no_main]` binary without an allocator, linked with `panic =
-/// "abort"` and fat LTO, that calls every entry point of the generated demo module (f32
-/// and f64: checked, unchecked and through `CompiledMap`) on opaque inputs. Its panic
+/// "abort"` and fat LTO, that calls every entry point of the generated demo modules of
+/// both model families (GraphSPN and tree mixture; f32 and f64, SIMD and scalar:
+/// checked, unchecked, through `CompiledMap` and the streaming state) on opaque inputs. Its panic
 /// handler calls a symbol that is defined nowhere, so the binary links only if the
 /// optimiser removed every path to a panic: this proves that the generated code and
 /// the runtime helpers it calls cannot panic, need neither `std` nor `alloc` (either
@@ -39,12 +51,19 @@ pub fn demo_source_for(precision: Precision, v: Vectorisation) -> String {
 /// bare-metal one such as `thumbv7em-none-eabihf`), or `None` for the host (Linux).
 pub fn link_check(target: Option<&str>) {
     let dir = tempfile::tempdir().unwrap();
-    for (module, precision, v) in [
-        ("m32", Precision::F32, Vectorisation::Simd),
-        ("m64", Precision::F64, Vectorisation::Simd),
-        ("s32", Precision::F32, Vectorisation::Scalar),
+    for (module, precision, v, trees) in [
+        ("m32", Precision::F32, Vectorisation::Simd, false),
+        ("m64", Precision::F64, Vectorisation::Simd, false),
+        ("s32", Precision::F32, Vectorisation::Scalar, false),
+        ("t32", Precision::F32, Vectorisation::Simd, true),
+        ("t64", Precision::F64, Vectorisation::Simd, true),
+        ("v32", Precision::F32, Vectorisation::Scalar, true),
     ] {
-        let src = demo_source_for(precision, v);
+        let src = if trees {
+            demo_tree_source_for(precision, v)
+        } else {
+            demo_source_for(precision, v)
+        };
         std::fs::create_dir_all(dir.path().join("src")).unwrap();
         std::fs::write(dir.path().join(format!("src/{module}.rs")), src).unwrap();
     }
@@ -101,8 +120,9 @@ pub fn link_check(target: Option<&str>) {
 /// The symbol the probe's panic handler calls; defined nowhere.
 const UNDEFINED_ON_PANIC: &str = "graphspn_generated_code_reaches_a_panic";
 
-/// `src/main.rs` of the probe binary (modules `m32`, `m64`, `s32`: the demo floor in
-/// f32 and f64 SIMD form and f32 scalar form).
+/// `src/main.rs` of the probe binary (modules `m32`, `m64`, `s32`: the demo floor's
+/// GraphSPN in f32 and f64 SIMD form and f32 scalar form; `t32`, `t64`, `v32`: its tree
+/// mixture in the same forms).
 const NO_PANIC_PROBE: &str = r#"
 #![no_std]
 #![no_main]
@@ -116,6 +136,12 @@ mod m32 { include!("m32.rs"); }
 mod m64 { include!("m64.rs"); }
 #[cfg(not(panic_control))]
 mod s32 { include!("s32.rs"); }
+#[cfg(not(panic_control))]
+mod t32 { include!("t32.rs"); }
+#[cfg(not(panic_control))]
+mod t64 { include!("t64.rs"); }
+#[cfg(not(panic_control))]
+mod v32 { include!("v32.rs"); }
 
 unsafe extern "C" {
     /// Defined nowhere: the binary links only if no path reaches the panic handler.
@@ -179,6 +205,9 @@ pub extern "C" fn _start() -> ! {
         exercise!(m32);
         exercise!(m64);
         exercise!(s32);
+        exercise!(t32);
+        exercise!(t64);
+        exercise!(v32);
     }
     #[cfg(panic_control)]
     {

@@ -1,23 +1,27 @@
 //! The `build.rs` front end, in the style of `prost-build`: a one-call [`compile`]
-//! and a [`Builder`] (model file, map file or COLD folder, decompositions from a
-//! file or from a seed, precision, module name, output directory defaulting to
-//! `$OUT_DIR`). [`Builder::generate`] is pure (inputs → source text);
-//! [`Builder::run`] writes the file only if its content changed and prints
-//! `cargo:rerun-if-changed` for every input. Every error names the file concerned.
+//! and a [`Builder`] (model file of either family, map file or COLD folder,
+//! decompositions from a file or from a seed (GraphSPN) or seeded spanning trees (tree
+//! mixture), precision, module name, output directory defaulting to `$OUT_DIR`).
+//! [`Builder::generate`] is pure (inputs → source text); [`Builder::run`] writes the
+//! file only if its content changed and prints `cargo:rerun-if-changed` for every
+//! input. Every error names the file concerned.
 
 use std::path::{Path, PathBuf};
 
 use thiserror::Error;
 
 use super::{
-    CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation, generate_with_report,
+    CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation, generate_trees_with_report,
+    generate_with_report,
 };
 use crate::decompose::file::DecompositionFileError;
 use crate::decompose::{
     DecomposeError, Decomposition, DecompositionParams, DecompositionStrategy, decompose_best,
 };
+use crate::family::AnyModel;
 use crate::learn::{Model, ModelFileError};
-use crate::map::{MapError, TopoMap, cold};
+use crate::map::{ClassSet, MapError, TopoMap, cold};
+use crate::treemix::{SpanningTrees, TreeMixError, TreeMixture};
 
 /// The first line of every generated file starts with this text; [`is_generated_file`]
 /// uses it to tell generated files (safe to overwrite) from hand-written ones.
@@ -82,6 +86,16 @@ pub enum BuildError {
         /// What went wrong.
         source: DecomposeError,
     },
+    /// The spanning trees of a tree mixture could not be drawn for the map.
+    #[error("spanning trees of map {} for model file {}: {source}", map.display(), model.display())]
+    Trees {
+        /// The map file or folder.
+        map: PathBuf,
+        /// The model file.
+        model: PathBuf,
+        /// What went wrong.
+        source: TreeMixError,
+    },
     /// Code generation rejected the inputs.
     #[error("generating code for model file {} and map {}: {source}", model.display(), map.display())]
     Codegen {
@@ -119,6 +133,14 @@ pub enum BuildError {
 /// Reads a model file ([`Model::load`]); errors name the file.
 pub fn load_model(path: &Path) -> Result<Model, BuildError> {
     Model::load(path).map_err(|source| BuildError::Model {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Reads a model file of either family ([`AnyModel::load`]); errors name the file.
+pub fn load_any_model(path: &Path) -> Result<AnyModel, BuildError> {
+    AnyModel::load(path).map_err(|source| BuildError::Model {
         path: path.to_path_buf(),
         source,
     })
@@ -245,7 +267,49 @@ pub struct Inputs {
     pub decompositions: Vec<Decomposition>,
 }
 
-/// Configures and runs code generation from files, for `build.rs` scripts.
+/// Everything a tree mixture's module is generated from ([`Builder::load_any`]).
+#[derive(Clone, Debug)]
+pub struct TreeInputs {
+    /// The tree mixture.
+    pub model: TreeMixture,
+    /// The map.
+    pub map: TopoMap,
+    /// The spanning forests mixed at the root.
+    pub trees: SpanningTrees,
+}
+
+/// The inputs of either model family ([`Builder::load_any`]).
+#[derive(Clone, Debug)]
+pub enum AnyInputs {
+    /// A GraphSPN with its decompositions.
+    Graphspn(Inputs),
+    /// A tree mixture with its spanning trees.
+    TreeMixture(TreeInputs),
+}
+
+impl AnyInputs {
+    /// The map.
+    pub fn map(&self) -> &TopoMap {
+        match self {
+            AnyInputs::Graphspn(i) => &i.map,
+            AnyInputs::TreeMixture(i) => &i.map,
+        }
+    }
+
+    /// Mixture components at the root: decompositions (GraphSPN) or trees.
+    pub fn components(&self) -> usize {
+        match self {
+            AnyInputs::Graphspn(i) => i.decompositions.len(),
+            AnyInputs::TreeMixture(i) => i.trees.len(),
+        }
+    }
+}
+
+/// Configures and runs code generation from files, for `build.rs` scripts. The model
+/// file may hold either family: a GraphSPN is mixed over decompositions (from a file,
+/// or seeded: [`Builder::seed`], [`Builder::count`]), a tree mixture over spanning
+/// trees (`SpanningTrees::covering`: [`Builder::seed`] seeds them, [`Builder::count`]
+/// overrides the model's `trees`).
 ///
 /// ```no_run
 /// // build.rs
@@ -272,6 +336,8 @@ pub struct Builder {
     max_stack_bytes: Option<usize>,
     cargo_lines: bool,
     overwrite: bool,
+    /// The count given to [`Builder::count`] (trees of a tree mixture).
+    count: Option<usize>,
 }
 
 impl Builder {
@@ -291,6 +357,7 @@ impl Builder {
             max_stack_bytes: None,
             cargo_lines: true,
             overwrite: false,
+            count: None,
         }
     }
 
@@ -317,15 +384,18 @@ impl Builder {
     }
 
     /// Decomposes the map with [`decompose_best`] from this seed (replaces a file or
-    /// explicit decompositions given before).
+    /// explicit decompositions given before); for a tree mixture, the seed of its
+    /// spanning trees.
     pub fn seed(mut self, seed: u64) -> Self {
         self.seeded().seed = seed;
         self
     }
 
     /// Number of seeded decompositions mixed at the root (default 5); the candidates
-    /// are raised to at least 3 × `count`.
+    /// are raised to at least 3 × `count`. For a tree mixture: the number of spanning
+    /// trees (default: the model's `trees`).
     pub fn count(mut self, count: usize) -> Self {
+        self.count = Some(count);
         let p = self.seeded();
         p.count = count;
         p.candidates = p.candidates.max(3 * count);
@@ -402,18 +472,24 @@ impl Builder {
         self
     }
 
+    /// The model's and the map's classes must be the same, in the same order.
+    fn check_classes(&self, model: &ClassSet, map: &TopoMap) -> Result<(), BuildError> {
+        if model.names() == map.classes.names() {
+            return Ok(());
+        }
+        Err(BuildError::ClassesDiffer {
+            model: self.model.clone(),
+            model_classes: model.names().to_vec(),
+            map: self.map.clone(),
+            map_classes: map.classes.names().to_vec(),
+        })
+    }
+
     /// Loads and checks the model, the map and the decompositions.
     pub fn load(&self) -> Result<Inputs, BuildError> {
         let model = load_model(&self.model)?;
         let map = load_map(&self.map)?;
-        if model.classes.names() != map.classes.names() {
-            return Err(BuildError::ClassesDiffer {
-                model: self.model.clone(),
-                model_classes: model.classes.names().to_vec(),
-                map: self.map.clone(),
-                map_classes: map.classes.names().to_vec(),
-            });
-        }
+        self.check_classes(&model.classes, &map)?;
         let decompositions =
             match &self.decompositions {
                 DecSource::File(path) => load_decompositions(path, &map, &model)?,
@@ -430,6 +506,34 @@ impl Builder {
             map,
             decompositions,
         })
+    }
+
+    /// Loads and checks the model (either family), the map and the decompositions or
+    /// spanning trees.
+    pub fn load_any(&self) -> Result<AnyInputs, BuildError> {
+        let model = match load_any_model(&self.model)? {
+            AnyModel::Graphspn(_) => return self.load().map(AnyInputs::Graphspn),
+            AnyModel::TreeMixture(m) => m,
+        };
+        let map = load_map(&self.map)?;
+        self.check_classes(&model.classes, &map)?;
+        let seed = match &self.decompositions {
+            DecSource::Seeded(p) => p.seed,
+            DecSource::File(_) | DecSource::Given(_) => {
+                return Err(BuildError::BadOption(format!(
+                    "model file {} is a tree mixture: it takes spanning trees (seed, count), not decompositions",
+                    self.model.display()
+                )));
+            }
+        };
+        let count = self.count.unwrap_or(model.trees);
+        let trees =
+            SpanningTrees::covering(&map, count, seed).map_err(|source| BuildError::Trees {
+                map: self.map.clone(),
+                model: self.model.clone(),
+                source,
+            })?;
+        Ok(AnyInputs::TreeMixture(TreeInputs { model, map, trees }))
     }
 
     fn options(&self) -> CodegenOptions {
@@ -468,10 +572,26 @@ impl Builder {
         })
     }
 
-    /// Loads the inputs and returns the generated source; writes nothing. The same
-    /// inputs and options give byte-identical text.
+    /// The generated source and the report for already loaded inputs of either family.
+    pub fn report_from_any(&self, inputs: &AnyInputs) -> Result<(String, CodeReport), BuildError> {
+        match inputs {
+            AnyInputs::Graphspn(i) => self.report_from(i),
+            AnyInputs::TreeMixture(i) => {
+                generate_trees_with_report(&i.model, &i.map, &i.trees, &self.options()).map_err(
+                    |source| BuildError::Codegen {
+                        model: self.model.clone(),
+                        map: self.map.clone(),
+                        source,
+                    },
+                )
+            }
+        }
+    }
+
+    /// Loads the inputs (either family) and returns the generated source; writes
+    /// nothing. The same inputs and options give byte-identical text.
     pub fn generate(&self) -> Result<String, BuildError> {
-        self.generate_from(&self.load()?)
+        self.report_from_any(&self.load_any()?).map(|(s, _)| s)
     }
 
     /// The file [`Builder::run`] writes.
@@ -508,7 +628,8 @@ impl Builder {
                 println!("cargo:rerun-if-changed={}", p.display());
             }
         }
-        self.write_from(&self.load()?)
+        self.write_report_from_any(&self.load_any()?)
+            .map(|(p, _)| p)
     }
 
     /// Generates the module from already loaded inputs and writes it if its content
@@ -520,11 +641,27 @@ impl Builder {
 
     /// [`Builder::write_from`], also returning the generator's [`CodeReport`].
     pub fn write_report_from(&self, inputs: &Inputs) -> Result<(PathBuf, CodeReport), BuildError> {
+        self.write_with(|| self.report_from(inputs))
+    }
+
+    /// [`Builder::write_report_from`] for inputs of either family.
+    pub fn write_report_from_any(
+        &self,
+        inputs: &AnyInputs,
+    ) -> Result<(PathBuf, CodeReport), BuildError> {
+        self.write_with(|| self.report_from_any(inputs))
+    }
+
+    /// Checks that the output may be replaced, renders and writes it if it changed.
+    fn write_with(
+        &self,
+        render: impl FnOnce() -> Result<(String, CodeReport), BuildError>,
+    ) -> Result<(PathBuf, CodeReport), BuildError> {
         let out = self.output_path()?;
         if !self.overwrite {
             check_replaceable(&out)?;
         }
-        let (text, report) = self.report_from(inputs)?;
+        let (text, report) = render()?;
         write_if_changed(&out, &text)?;
         Ok((out, report))
     }

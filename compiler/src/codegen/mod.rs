@@ -1,5 +1,11 @@
 //! Code generation: straight-line `no_std` Rust for a known map, and the `build.rs` builder.
 //!
+//! Both model families compile to modules with the same public API (the stateless
+//! functions, the constants, the streaming `State`, the `CompiledMap` impl; shared
+//! parts in `surface.rs`): [`generate`] for a GraphSPN (below), [`generate_trees`] for
+//! a tree mixture (`trees/`: potentials and per-forest tables run over by the
+//! runtime's tree driver). [`Builder`] reads a model file of either family.
+//!
 //! [`generate`] turns a learned [`Model`], a [`TopoMap`] and its decompositions (the
 //! instance GraphSPN of the paper's Alg. 1: `S(α) = Σ_d (1/D) Π_k T_{t(k)}(α_k)`) into
 //! the source of one Rust module that computes, without allocation, panics or
@@ -31,14 +37,17 @@ mod builder;
 mod emit;
 mod kernels;
 mod sparse;
+mod surface;
 mod template;
+mod trees;
 mod wiring;
 
-pub use wiring::CodeReport;
+pub use surface::CodeReport;
 
 pub use builder::{
-    BuildError, Builder, GENERATED_MARKER, Inputs, check_module_name, compile, is_generated_file,
-    load_decompositions, load_map, load_model, write_if_changed,
+    AnyInputs, BuildError, Builder, GENERATED_MARKER, Inputs, TreeInputs, check_module_name,
+    compile, is_generated_file, load_any_model, load_decompositions, load_map, load_model,
+    write_if_changed,
 };
 
 use thiserror::Error;
@@ -46,6 +55,7 @@ use thiserror::Error;
 use crate::decompose::Decomposition;
 use crate::learn::Model;
 use crate::map::TopoMap;
+use crate::treemix::{SpanningTrees, TreeMixture};
 
 /// Floating-point type of the generated code.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -241,6 +251,38 @@ pub fn generate_with_report(
 ) -> Result<(String, CodeReport), CodegenError> {
     analysis::check_inputs(model, map, decompositions)?;
     let (tokens, report) = wiring::module(model, map, decompositions, options)?;
+    Ok((render(tokens, map, options)?, report))
+}
+
+/// Generates the Rust source of a compiled tree mixture: `model` over the spanning
+/// forests `trees` of `map` (see [`crate::treemix`]), with the same public API as a
+/// GraphSPN module. Pure and deterministic, like [`generate`].
+pub fn generate_trees(
+    model: &TreeMixture,
+    map: &TopoMap,
+    trees: &SpanningTrees,
+    options: &CodegenOptions,
+) -> Result<String, CodegenError> {
+    generate_trees_with_report(model, map, trees, options).map(|(s, _)| s)
+}
+
+/// [`generate_trees`], and the generator's report.
+pub fn generate_trees_with_report(
+    model: &TreeMixture,
+    map: &TopoMap,
+    trees: &SpanningTrees,
+    options: &CodegenOptions,
+) -> Result<(String, CodeReport), CodegenError> {
+    let (tokens, report) = trees::module(model, map, trees, options)?;
+    Ok((render(tokens, map, options)?, report))
+}
+
+/// The module's tokens as formatted text under the `@generated` line.
+fn render(
+    tokens: proc_macro2::TokenStream,
+    map: &TopoMap,
+    options: &CodegenOptions,
+) -> Result<String, CodegenError> {
     // Tokens to a syntax tree for prettyplease; the emitters build every item with
     // `quote!`, so this fails only on a generator bug.
     let file: syn::File = syn::parse2(tokens).map_err(|e| CodegenError::Internal(e.to_string()))?;
@@ -251,5 +293,5 @@ pub fn generate_with_report(
         options.model_label.replace('\n', " "),
         map.name.replace('\n', " ")
     );
-    Ok((header + &prettyplease::unparse(&file), report))
+    Ok(header + &prettyplease::unparse(&file))
 }

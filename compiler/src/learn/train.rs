@@ -22,9 +22,8 @@
 //! value of the sample's max-product (MPE) tree (hard EM) or the SPN value (soft
 //! EM). The M-step is `w_e ∝ count_e + s`.
 
-use std::collections::BTreeMap;
-
 use rayon::prelude::*;
+use std::collections::BTreeMap;
 
 use super::settings::{EmKind, TrainingSettings};
 use super::symmetry::{EdgeOrbits, order_free_sum, set_normalised, sum_edge_offsets};

@@ -13,3 +13,15 @@ pub mod demo_floor {
 pub mod saarbrucken_seq2_night1 {
     include!(concat!(env!("OUT_DIR"), "/saarbrucken_seq2_night1.rs"));
 }
+
+/// The demo office floor's tree mixture (80 places, `f32`).
+#[allow(missing_docs, clippy::all)]
+pub mod demo_floor_trees {
+    include!(concat!(env!("OUT_DIR"), "/demo_floor_trees.rs"));
+}
+
+/// Saarbrücken `seq2_night1`'s tree mixture (230 places, `f32`).
+#[allow(missing_docs, clippy::all)]
+pub mod saarbrucken_seq2_night1_trees {
+    include!(concat!(env!("OUT_DIR"), "/saarbrucken_seq2_night1_trees.rs"));
+}

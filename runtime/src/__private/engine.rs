@@ -24,7 +24,7 @@ pub type MpeFn<T, const NV: usize, const C: usize> = fn(&[[T; C]; NV], &mut [u16
 
 /// `a > b`; `false` when either is NaN.
 #[inline(always)]
-fn above<T: PartialOrd>(a: T, b: T) -> bool {
+pub(crate) fn above<T: PartialOrd>(a: T, b: T) -> bool {
     a > b
 }
 
@@ -73,6 +73,12 @@ impl<T: Real> Acc<T> {
         let (m, e) = (self.m * v).split();
         self.m = m;
         self.e += e;
+    }
+
+    /// Multiplies by `2^k` (exact).
+    #[inline(always)]
+    pub fn mul_pow2(&mut self, k: i32) {
+        self.e = self.e.saturating_add(k);
     }
 
     /// Multiplies by `e^l` for a log value `l`.

@@ -41,6 +41,16 @@ pub trait Lanes:
     type Scalar: Real;
     /// All lanes `0`.
     const ZERO: Self;
+    /// Lanes per vector (1 for a scalar).
+    const WIDTH: usize;
+    /// The lanes as a slice of [`Lanes::WIDTH`] scalars.
+    fn lanes(&self) -> &[Self::Scalar];
+    /// Lane-wise flush of tiny values: `0` where `self < t`, `self` elsewhere.
+    fn flush(self, t: Self) -> Self;
+    /// The largest lane (pairwise, in `log2(WIDTH)` steps; lanes are never NaN here).
+    fn hmax(self) -> Self::Scalar;
+    /// The sum of the lanes (pairwise, in `log2(WIDTH)` steps).
+    fn hsum(self) -> Self::Scalar;
     /// All lanes `s`.
     fn splat(s: Self::Scalar) -> Self;
     /// `self·a + b` per lane (fused where the target has FMA).
@@ -83,6 +93,35 @@ macro_rules! lanes_impl {
         impl Lanes for $v {
             type Scalar = $t;
             const ZERO: Self = $v::ZERO;
+            const WIDTH: usize = core::mem::size_of::<$v>() / core::mem::size_of::<$t>();
+            #[inline(always)]
+            fn lanes(&self) -> &[$t] {
+                self.as_array()
+            }
+            #[inline(always)]
+            fn flush(self, t: Self) -> Self {
+                self.simd_lt(t).select($v::ZERO, self)
+            }
+            #[inline(always)]
+            fn hmax(self) -> $t {
+                let mut v = self;
+                let mut w = Self::WIDTH / 2;
+                while w > 0 {
+                    v = v.fast_max(swap_lanes(v, w));
+                    w /= 2;
+                }
+                v.to_array()[0]
+            }
+            #[inline(always)]
+            fn hsum(self) -> $t {
+                let mut v = self;
+                let mut w = Self::WIDTH / 2;
+                while w > 0 {
+                    v = v + swap_lanes(v, w);
+                    w /= 2;
+                }
+                v.to_array()[0]
+            }
             #[inline(always)]
             fn splat(s: $t) -> Self {
                 $v::splat(s)
@@ -133,6 +172,46 @@ macro_rules! lanes_impl {
     };
 }
 
+/// `v` with lanes `i` and `i ^ w` exchanged (a shuffle: one step of a pairwise
+/// reduction).
+#[inline(always)]
+fn swap_lanes<V: SwapLanes<T, L>, T: Copy + Default, const L: usize>(v: V, w: usize) -> V {
+    let a = v.array();
+    let mut p = [T::default(); L];
+    for (i, o) in p.iter_mut().enumerate() {
+        *o = a.get(i ^ w).copied().unwrap_or_default();
+    }
+    V::from_array(p)
+}
+
+/// Conversions of a `wide` vector to and from its lanes (for [`swap_lanes`]).
+trait SwapLanes<T, const L: usize> {
+    fn array(self) -> [T; L];
+    fn from_array(a: [T; L]) -> Self;
+}
+
+impl SwapLanes<f32, 8> for Lanes32 {
+    #[inline(always)]
+    fn array(self) -> [f32; 8] {
+        self.to_array()
+    }
+    #[inline(always)]
+    fn from_array(a: [f32; 8]) -> Self {
+        Lanes32::new(a)
+    }
+}
+
+impl SwapLanes<f64, 4> for Lanes64 {
+    #[inline(always)]
+    fn array(self) -> [f64; 4] {
+        self.to_array()
+    }
+    #[inline(always)]
+    fn from_array(a: [f64; 4]) -> Self {
+        Lanes64::new(a)
+    }
+}
+
 lanes_impl!(Lanes32, f32);
 lanes_impl!(Lanes64, f64);
 
@@ -144,6 +223,23 @@ macro_rules! scalar_lanes {
         impl Lanes for $t {
             type Scalar = $t;
             const ZERO: Self = 0.0;
+            const WIDTH: usize = 1;
+            #[inline(always)]
+            fn lanes(&self) -> &[$t] {
+                core::slice::from_ref(self)
+            }
+            #[inline(always)]
+            fn flush(self, t: Self) -> Self {
+                if self < t { 0.0 } else { self }
+            }
+            #[inline(always)]
+            fn hmax(self) -> $t {
+                self
+            }
+            #[inline(always)]
+            fn hsum(self) -> $t {
+                self
+            }
             #[inline(always)]
             fn splat(s: $t) -> Self {
                 s

@@ -295,14 +295,17 @@ flavour!(
 mod blocks;
 mod engine;
 mod lanes;
+mod tree;
 
 pub use blocks::*;
 pub use engine::*;
 pub use lanes::*;
+pub use tree::*;
 
 /// The scalar types of generated code (`f32`, `f64`).
 pub trait Real:
     Copy
+    + 'static
     + PartialOrd
     + core::fmt::Debug
     + core::ops::Add<Output = Self>
@@ -335,11 +338,27 @@ pub trait Real:
     /// `(m, e)` with `self = m·2^e` exactly and `m` in `[1, 2)`; zero, infinite and NaN
     /// values are returned unchanged with `e = 0`, subnormals are normalised.
     fn split(self) -> (Self, i32);
+    /// `2^e`, exact; `e` is clamped to the normal range (`-126..=127` for `f32`,
+    /// `-1022..=1023` for `f64`).
+    fn pow2(e: i32) -> Self;
+    /// Binary exponent of the flush threshold of the tree-mixture driver: entries of a
+    /// row normalised to a largest entry in `[1, 2)` that fall below `2^TINY_EXP` are
+    /// set to zero (`-80` for `f32`, `-600` for `f64`; see `tree`).
+    const TINY_EXP: i32;
+    /// Binary exponent of the smallest normal value (`-126` for `f32`, `-1022` for `f64`).
+    const MIN_EXP: i32;
 }
 
 macro_rules! real_impl {
-    ($t:ident, $bits:ident, $mant:expr, $bias:expr, $emask:expr, $ln:path, $exp:path) => {
+    ($t:ident, $bits:ident, $mant:expr, $bias:expr, $emask:expr, $ln:path, $exp:path, $tiny:expr) => {
         impl Real for $t {
+            const TINY_EXP: i32 = $tiny;
+            const MIN_EXP: i32 = 1 - $bias;
+            #[inline(always)]
+            fn pow2(e: i32) -> $t {
+                let e = e.clamp(1 - $bias, $bias);
+                $t::from_bits(((e + $bias) as $bits) << $mant)
+            }
             const ZERO: $t = 0.0;
             const ONE: $t = 1.0;
             const LN_2: $t = core::$t::consts::LN_2;
@@ -396,8 +415,8 @@ macro_rules! real_impl {
     };
 }
 
-real_impl!(f32, u32, 23, 127, 0xff, libm::logf, libm::expf);
-real_impl!(f64, u64, 52, 1023, 0x7ff, libm::log, libm::exp);
+real_impl!(f32, u32, 23, 127, 0xff, libm::logf, libm::expf, -80);
+real_impl!(f64, u64, 52, 1023, 0x7ff, libm::log, libm::exp, -600);
 
 /// The scaled rows of places `p` (see `prep_f32`): `x = α/max α`, or the one-hot row of
 /// the place's label when it is `< C`. Out-of-range places give zero rows.

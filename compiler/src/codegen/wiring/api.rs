@@ -2,33 +2,11 @@
 //! (`marginals`), MPE, the (labelled) log-likelihood and the `CompiledMap` impl.
 
 use proc_macro2::TokenStream;
-use quote::{format_ident, quote};
+use quote::quote;
 
 use super::super::emit::rt;
+use super::super::surface::{checked, checked_labelled};
 use super::{Context, Tpl};
-
-/// `pub fn <name>(<params>) -> Result<T, EvidenceError>`, documented by `docs` (one
-/// string per line): validates the evidence `e` (and runs `more`), then calls
-/// `<name>_unchecked(<args>)`.
-fn checked(
-    cx: &Context,
-    docs: &[&str],
-    name: &str,
-    params: TokenStream,
-    args: TokenStream,
-    more: TokenStream,
-) -> TokenStream {
-    let (t, check) = (cx.l.ty(), cx.l.helper("check"));
-    let (f, unchecked) = (format_ident!("{name}"), format_ident!("{name}_unchecked"));
-    quote! {
-        #(#[doc = #docs])*
-        pub fn #f(#params) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            #check(e, &PLACE_IDS)?;
-            #more
-            #unchecked(#args)
-        }
-    }
-}
 
 /// One driver call per template, `call(table)` with the template's `static` table.
 fn per_template(tpls: &[Tpl], call: impl Fn(&Tpl) -> TokenStream) -> TokenStream {
@@ -74,7 +52,7 @@ pub(super) fn stateless_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
 fn likelihood_api(cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let log_likelihood = checked(
-        cx,
+        &cx.l,
         &[
             " Natural log of the likelihood `S(α)` of the evidence (relative error about 1e-6 in",
             " `f32`: one rounding per multiply-add, products kept with exact exponents).",
@@ -84,18 +62,7 @@ fn likelihood_api(cx: &Context) -> TokenStream {
         quote!(e),
         TokenStream::new(),
     );
-    let labelled = checked(
-        cx,
-        &[
-            " Natural log of the likelihood of the evidence with every labelled place restricted",
-            " to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are",
-            " rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.",
-        ],
-        "labelled_log_likelihood",
-        quote!(labels: &Labels, e: &Evidence),
-        quote!(labels, e),
-        quote!(#rt::check_labels(labels, NUM_CLASSES)?;),
-    );
+    let labelled = checked_labelled(&cx.l);
     quote! {
         /// Natural log of the likelihood `S(α)` of the evidence, without validating it.
         /// Invalid evidence gives unspecified numbers (never a panic).
@@ -119,7 +86,7 @@ fn likelihood_api(cx: &Context) -> TokenStream {
 fn posterior_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let checked = checked(
-        cx,
+        &cx.l,
         &[
             " Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error",
             " about 1e-6 in `f32`) and returns the log-likelihood `ln S(α)`. Two passes over the",
@@ -155,7 +122,7 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
 fn mpe(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let checked = checked(
-        cx,
+        &cx.l,
         &[
             " Writes the max-product (MPE) labelling into `labels` and returns its natural-log",
             " max-product value `max_d ln((1/D) Π_k maxprod T_k)`, ties broken towards the lowest",
@@ -189,81 +156,5 @@ fn mpe(tpls: &[Tpl], cx: &Context) -> TokenStream {
         }
 
         #checked
-    }
-}
-
-/// `Map`, this map as a `graphspn_runtime::CompiledMap`.
-pub(super) fn compiled_map_impl(cx: &Context) -> TokenStream {
-    let (rt, t) = (rt(), cx.l.ty());
-    let err = quote!(::graphspn_runtime::EvidenceError);
-    quote! {
-        /// This map as a [`::graphspn_runtime::CompiledMap`], for code generic over compiled maps.
-        pub struct Map;
-
-        impl ::graphspn_runtime::CompiledMap for Map {
-            type Scalar = #t;
-            type Row = [#t; NUM_CLASSES];
-            type State = State;
-            const NUM_PLACES: usize = NUM_PLACES;
-            const NUM_CLASSES: usize = NUM_CLASSES;
-            const NUM_DECOMPOSITIONS: usize = NUM_DECOMPOSITIONS;
-            const PLACE_IDS: &'static [u32] = &PLACE_IDS;
-            const CLASS_NAMES: &'static [&'static str] = &CLASS_NAMES;
-            const ZERO_ROW: Self::Row = [0.0; NUM_CLASSES];
-            const NEW_STATE: State = State::new();
-            const LANES: usize = LANES;
-            const NUM_COMPONENTS: usize = NUM_COMPONENTS;
-            const STACK_BYTES_LOG_LIKELIHOOD: usize = STACK_BYTES_LOG_LIKELIHOOD;
-            const STACK_BYTES_MARGINALS: usize = STACK_BYTES_MARGINALS;
-            const STACK_BYTES_MPE: usize = STACK_BYTES_MPE;
-            const STACK_BYTES_STATE: usize = STACK_BYTES_STATE;
-            const STATE_BYTES: usize = STATE_BYTES;
-            const MACS_LOG_LIKELIHOOD: usize = MACS_LOG_LIKELIHOOD;
-            const MACS_MARGINALS: usize = MACS_MARGINALS;
-            const MACS_MPE: usize = MACS_MPE;
-            const MACS_OBSERVE_MARGINALS: usize = MACS_OBSERVE_MARGINALS;
-            fn log_likelihood(e: &[Self::Row]) -> Result<#t, #err> {
-                self::log_likelihood(#rt::fixed(e)?)
-            }
-            fn marginals(e: &[Self::Row], out: &mut [Self::Row]) -> Result<#t, #err> {
-                self::marginals(#rt::fixed(e)?, #rt::fixed_mut(out)?)
-            }
-            fn mpe(e: &[Self::Row], labels: &mut [u16]) -> Result<#t, #err> {
-                self::mpe(#rt::fixed(e)?, #rt::fixed_mut(labels)?)
-            }
-            fn labelled_log_likelihood(labels: &[u16], e: &[Self::Row]) -> Result<#t, #err> {
-                self::labelled_log_likelihood(#rt::fixed(labels)?, #rt::fixed(e)?)
-            }
-            fn set_evidence(s: &mut State, place: usize, row: &Self::Row) -> Result<(), #err> {
-                s.set_evidence(place, row)
-            }
-            fn observe(s: &mut State, place: usize, row: &Self::Row) -> Result<(), #err> {
-                s.observe(place, row)
-            }
-            fn clear_evidence(s: &mut State, place: usize) -> Result<(), #err> {
-                s.clear_evidence(place)
-            }
-            fn state_log_likelihood(s: &mut State) -> Result<#t, #err> {
-                s.log_likelihood()
-            }
-            fn state_marginals(s: &mut State, out: &mut [Self::Row]) -> Result<#t, #err> {
-                s.marginals(#rt::fixed_mut(out)?)
-            }
-            fn state_marginal(s: &mut State, place: usize, row: &mut Self::Row) -> Result<(), #err> {
-                s.marginal(place, row)
-            }
-            fn state_evidence(s: &State) -> &[Self::Row] {
-                s.evidence()
-            }
-            fn set_all(s: &mut State, e: &[Self::Row]) -> Result<(), #err> {
-                s.set_all(#rt::fixed(e)?)
-            }
-            fn state_labelled_log_likelihood(s: &mut State, labels: &[u16]) -> Result<#t, #err> {
-                s.labelled_log_likelihood(#rt::fixed(labels)?)
-            }
-            fn state_mpe(s: &mut State, labels: &mut [u16]) -> Result<#t, #err> {
-                s.mpe(#rt::fixed_mut(labels)?)
-            }
-        }
     }
 }

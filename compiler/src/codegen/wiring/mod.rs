@@ -48,6 +48,7 @@ use super::analysis::{Numerics, Unique, numerics, unique_components};
 use super::emit::{Lit, array, hex, int, int_array, rt};
 use super::kernels;
 use super::sparse::{Counts, SparseCode};
+use super::surface::{CodeReport, Surface, compiled_map_impl, constants_and_types};
 use super::template::TemplateCode;
 use super::{CodegenError, CodegenOptions, Precision, Vectorisation};
 
@@ -63,38 +64,6 @@ fn sanitize(name: &str) -> String {
         })
         .collect();
     s.chars().take(24).collect()
-}
-
-/// What the generator knows about the generated code, beside its text.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct CodeReport {
-    /// Components per call of kernel templates (`1` on targets without float SIMD).
-    pub lanes: usize,
-    /// Distinct components of the map.
-    pub components: usize,
-    /// Upper bound of the stack of `log_likelihood` (bytes), kernel frames included.
-    pub stack_log_likelihood: usize,
-    /// Upper bound of the stack of `marginals` (bytes).
-    pub stack_marginals: usize,
-    /// Upper bound of the stack of `mpe` (bytes).
-    pub stack_mpe: usize,
-    /// Upper bound of the stack of a `State` update plus query (bytes).
-    pub stack_state: usize,
-    /// Size of the streaming state (bytes).
-    pub state_bytes: usize,
-    /// Bytes of the `static` tables (component places, decomposition sets, slots).
-    pub table_bytes: usize,
-    /// Multiply(-add)s of one `log_likelihood` call (lane-vector operations).
-    pub macs_log_likelihood: usize,
-    /// Multiply(-add)s of one `marginals` call.
-    pub macs_marginals: usize,
-    /// Multiply(-add)s of one `mpe` call.
-    pub macs_mpe: usize,
-    /// Worst-case multiply(-add)s of one state update (`observe`) plus `marginals`.
-    pub macs_observe_marginals: usize,
-    /// Mean number of evaluation units (lane groups; single components in scalar
-    /// code) one state update re-evaluates, over the places.
-    pub units_per_update: f64,
 }
 
 /// What every emitter of the per-map part needs: sizes, scalar type, lanes.
@@ -375,15 +344,30 @@ pub fn module(
     let (tables, table_bytes) = tables(&tpls, &uniques, &layout, &cx);
     let report = report(&tpls, &layout, table_bytes, &cx, options)?;
     let lane_items = lane_items(&tpls, &cx);
-    let constants = constants_and_types(model, map, &layout, &report, &cx);
+    let constants = constants_and_types(&Surface {
+        l: &cx.l,
+        family: "graphspn",
+        n: cx.n,
+        c: cx.c,
+        mixture: cx.d_count,
+        mixture_doc: " Number of decompositions mixed (with uniform weights) at the root.",
+        lanes: cx.simd_lanes,
+        components: layout.components,
+        report: &report,
+        place_ids: map.places().map(|p| p.id).collect(),
+        class_names: model.classes.names(),
+    });
+    let rows = int(layout.rows);
     let functions = tpls.iter().map(|tp| &tp.code);
     let value_pass = api::value_pass(&tpls, &cx);
     let stateless = api::stateless_api(&tpls, &cx);
     let state = state::state_api(&tpls, &cx);
-    let compiled_map = api::compiled_map_impl(&cx);
+    let compiled_map = compiled_map_impl(&cx.l);
     let tokens = quote! {
         #lane_items
         #constants
+        static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
+        const NUM_ROWS: usize = #rows;
         #(#functions)*
         #tables
         #value_pass
@@ -411,93 +395,6 @@ fn lane_items(tpls: &[Tpl], cx: &Context) -> TokenStream {
         use #rt::Lanes as _;
         /// The lane vector of block templates.
         type V = #v_type;
-    }
-}
-
-/// The public constants (sizes, stack bounds, multiply-adds, ids, class names) and
-/// the array types of the API.
-fn constants_and_types(
-    model: &Model,
-    map: &TopoMap,
-    layout: &Layout,
-    r: &CodeReport,
-    cx: &Context,
-) -> TokenStream {
-    let t = cx.l.ty();
-    let (n, c, d, lanes, components, rows) = (
-        int(cx.n),
-        int(cx.c),
-        int(cx.d_count),
-        int(cx.simd_lanes),
-        int(layout.components),
-        int(layout.rows),
-    );
-    let (sl, sm, sp, ss) = (
-        int(r.stack_log_likelihood),
-        int(r.stack_marginals),
-        int(r.stack_mpe),
-        int(r.stack_state),
-    );
-    let (ml, mm, mp, mo) = (
-        int(r.macs_log_likelihood),
-        int(r.macs_marginals),
-        int(r.macs_mpe),
-        int(r.macs_observe_marginals),
-    );
-    let ids = array(
-        map.places()
-            .map(|p| proc_macro2::Literal::u32_unsuffixed(p.id)),
-    );
-    let names = array(
-        model
-            .classes
-            .names()
-            .iter()
-            .map(|x| proc_macro2::Literal::string(x)),
-    );
-    quote! {
-        /// Number of places of the map (the length of every evidence array).
-        pub const NUM_PLACES: usize = #n;
-        /// Number of classes per place.
-        pub const NUM_CLASSES: usize = #c;
-        /// Number of decompositions mixed (with uniform weights) at the root.
-        pub const NUM_DECOMPOSITIONS: usize = #d;
-        /// Components evaluated per call of a template function (SIMD lanes; 1 = scalar code).
-        pub const LANES: usize = #lanes;
-        /// Distinct components (template copies) of the map.
-        pub const NUM_COMPONENTS: usize = #components;
-        /// Upper bound of the stack (bytes) of one `log_likelihood` or `labelled_log_likelihood` call.
-        pub const STACK_BYTES_LOG_LIKELIHOOD: usize = #sl;
-        /// Upper bound of the stack (bytes) of one `marginals` call.
-        pub const STACK_BYTES_MARGINALS: usize = #sm;
-        /// Upper bound of the stack (bytes) of one `mpe` call.
-        pub const STACK_BYTES_MPE: usize = #sp;
-        /// Upper bound of the stack (bytes) of one [`State`] update or query.
-        pub const STACK_BYTES_STATE: usize = #ss;
-        /// Bytes of one [`State`].
-        pub const STATE_BYTES: usize = core::mem::size_of::<State>();
-        /// Multiply(-add)s of one `log_likelihood` call (vector operations when `LANES > 1`).
-        pub const MACS_LOG_LIKELIHOOD: usize = #ml;
-        /// Multiply(-add)s of one `marginals` call.
-        pub const MACS_MARGINALS: usize = #mm;
-        /// Multiply(-add)s of one `mpe` call.
-        pub const MACS_MPE: usize = #mp;
-        /// Worst-case multiply(-add)s of one [`State::observe`] plus [`State::marginals`].
-        pub const MACS_OBSERVE_MARGINALS: usize = #mo;
-        /// User-facing id of each place, in place order (evidence row `p` is place `PLACE_IDS[p]`).
-        pub const PLACE_IDS: [u32; NUM_PLACES] = #ids;
-        /// Class names in class-index order.
-        pub const CLASS_NAMES: [&str; NUM_CLASSES] = #names;
-        /// The label meaning "unknown" in label arrays.
-        pub const UNKNOWN: u16 = u16::MAX;
-        /// Local evidence: one row of non-negative likelihoods (one per class) per place.
-        pub type Evidence = [[#t; NUM_CLASSES]; NUM_PLACES];
-        /// Marginals: `P(Y_p = c | evidence)` per place and class.
-        pub type Marginals = [[#t; NUM_CLASSES]; NUM_PLACES];
-        /// One class index per place (`UNKNOWN` = not labelled).
-        pub type Labels = [u16; NUM_PLACES];
-        static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
-        const NUM_ROWS: usize = #rows;
     }
 }
 
@@ -646,16 +543,6 @@ fn report(
         units_per_update: layout.place_units.iter().map(Vec::len).sum::<usize>() as f64
             / n.max(1) as f64,
     };
-    let worst = report
-        .stack_marginals
-        .max(report.stack_log_likelihood)
-        .max(report.stack_mpe)
-        .max(report.stack_state);
-    if worst > options.stack_budget() {
-        return Err(CodegenError::BadOption(format!(
-            "the generated code needs up to {worst} bytes of stack per call, more than the budget of {} bytes (max_stack_bytes)",
-            options.stack_budget()
-        )));
-    }
+    report.check_budget(options)?;
     Ok(report)
 }

@@ -1,0 +1,297 @@
+//! The public surface every generated module has, whatever its model family: the
+//! constants and array types, the validating wrappers of the stateless functions, the
+//! `CompiledMap` impl, and the generator's report with its stack budget. The GraphSPN
+//! emitter (`wiring/`) and the tree-mixture emitter (`trees/`) both build their
+//! modules around these, so firmware and tests stay generic over both.
+
+use proc_macro2::TokenStream;
+use quote::{format_ident, quote};
+
+use super::emit::{Lit, array, int, rt};
+use super::{CodegenError, CodegenOptions};
+
+/// What the generator knows about the generated code, beside its text.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CodeReport {
+    /// Components per call of kernel templates (GraphSPN; `1` on targets without float
+    /// SIMD), or classes per lane vector of a row (tree mixture).
+    pub lanes: usize,
+    /// Distinct components of the map (GraphSPN: template copies; tree mixture: trees ×
+    /// places, one message each).
+    pub components: usize,
+    /// Upper bound of the stack of `log_likelihood` (bytes), kernel frames included.
+    pub stack_log_likelihood: usize,
+    /// Upper bound of the stack of `marginals` (bytes).
+    pub stack_marginals: usize,
+    /// Upper bound of the stack of `mpe` (bytes).
+    pub stack_mpe: usize,
+    /// Upper bound of the stack of a `State` update plus query (bytes).
+    pub stack_state: usize,
+    /// Size of the streaming state (bytes).
+    pub state_bytes: usize,
+    /// Bytes of the `static` tables (GraphSPN: component places, decomposition sets,
+    /// slots; tree mixture: the forests' orders, parents, children and roots, and the
+    /// potentials).
+    pub table_bytes: usize,
+    /// Multiply(-add)s of one `log_likelihood` call (lane-vector operations).
+    pub macs_log_likelihood: usize,
+    /// Multiply(-add)s of one `marginals` call.
+    pub macs_marginals: usize,
+    /// Multiply(-add)s of one `mpe` call.
+    pub macs_mpe: usize,
+    /// Worst-case multiply(-add)s of one state update (`observe`) plus `marginals`.
+    pub macs_observe_marginals: usize,
+    /// Mean number of evaluation units one state update re-evaluates, over the places
+    /// (GraphSPN: lane groups, or single components in scalar code; tree mixture:
+    /// places on the paths to the roots, summed over the trees).
+    pub units_per_update: f64,
+}
+
+impl CodeReport {
+    /// The largest stack bound of any entry point.
+    pub fn worst_stack(&self) -> usize {
+        self.stack_marginals
+            .max(self.stack_log_likelihood)
+            .max(self.stack_mpe)
+            .max(self.stack_state)
+    }
+
+    /// Fails when a stack bound exceeds the budget of `options`.
+    pub(super) fn check_budget(&self, options: &CodegenOptions) -> Result<(), CodegenError> {
+        let worst = self.worst_stack();
+        if worst > options.stack_budget() {
+            return Err(CodegenError::BadOption(format!(
+                "the generated code needs up to {worst} bytes of stack per call, more than the budget of {} bytes (max_stack_bytes)",
+                options.stack_budget()
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// What the public constants of a module say: sizes, the report, ids and names.
+pub(super) struct Surface<'a> {
+    /// Scalar type and literals.
+    pub l: &'a Lit,
+    /// `"graphspn"` or `"tree_mixture"` (`MODEL_FAMILY`).
+    pub family: &'static str,
+    /// Places.
+    pub n: usize,
+    /// Classes.
+    pub c: usize,
+    /// Mixture components at the root: decompositions or trees.
+    pub mixture: usize,
+    /// Documentation of `NUM_DECOMPOSITIONS` (one line).
+    pub mixture_doc: &'static str,
+    /// `LANES`.
+    pub lanes: usize,
+    /// `NUM_COMPONENTS`.
+    pub components: usize,
+    /// The generator's report.
+    pub report: &'a CodeReport,
+    /// Place ids in place order.
+    pub place_ids: Vec<u32>,
+    /// Class names in class order.
+    pub class_names: &'a [String],
+}
+
+/// The public constants (family, sizes, stack bounds, multiply-adds, ids, class names)
+/// and the array types of the API.
+pub(super) fn constants_and_types(s: &Surface) -> TokenStream {
+    let t = s.l.ty();
+    let r = s.report;
+    let (family, mixture_doc) = (s.family, s.mixture_doc);
+    let (n, c, d, lanes, components) = (
+        int(s.n),
+        int(s.c),
+        int(s.mixture),
+        int(s.lanes),
+        int(s.components),
+    );
+    let (sl, sm, sp, ss) = (
+        int(r.stack_log_likelihood),
+        int(r.stack_marginals),
+        int(r.stack_mpe),
+        int(r.stack_state),
+    );
+    let (ml, mm, mp, mo) = (
+        int(r.macs_log_likelihood),
+        int(r.macs_marginals),
+        int(r.macs_mpe),
+        int(r.macs_observe_marginals),
+    );
+    let ids = array(
+        s.place_ids
+            .iter()
+            .map(|&id| proc_macro2::Literal::u32_unsuffixed(id)),
+    );
+    let names = array(
+        s.class_names
+            .iter()
+            .map(|x| proc_macro2::Literal::string(x)),
+    );
+    quote! {
+        /// The model family compiled into this module (`"graphspn"` or `"tree_mixture"`).
+        pub const MODEL_FAMILY: &str = #family;
+        /// Number of places of the map (the length of every evidence array).
+        pub const NUM_PLACES: usize = #n;
+        /// Number of classes per place.
+        pub const NUM_CLASSES: usize = #c;
+        #[doc = #mixture_doc]
+        pub const NUM_DECOMPOSITIONS: usize = #d;
+        /// SIMD lanes of the generated code (1 = scalar code): components per template call
+        /// (GraphSPN), classes per lane vector (tree mixture).
+        pub const LANES: usize = #lanes;
+        /// Distinct components of the map: template copies (GraphSPN), trees × places
+        /// (tree mixture: one cached message each).
+        pub const NUM_COMPONENTS: usize = #components;
+        /// Upper bound of the stack (bytes) of one `log_likelihood` or `labelled_log_likelihood` call.
+        pub const STACK_BYTES_LOG_LIKELIHOOD: usize = #sl;
+        /// Upper bound of the stack (bytes) of one `marginals` call.
+        pub const STACK_BYTES_MARGINALS: usize = #sm;
+        /// Upper bound of the stack (bytes) of one `mpe` call.
+        pub const STACK_BYTES_MPE: usize = #sp;
+        /// Upper bound of the stack (bytes) of one [`State`] update or query.
+        pub const STACK_BYTES_STATE: usize = #ss;
+        /// Bytes of one [`State`].
+        pub const STATE_BYTES: usize = core::mem::size_of::<State>();
+        /// Multiply(-add)s of one `log_likelihood` call (vector operations when `LANES > 1`).
+        pub const MACS_LOG_LIKELIHOOD: usize = #ml;
+        /// Multiply(-add)s of one `marginals` call.
+        pub const MACS_MARGINALS: usize = #mm;
+        /// Multiply(-add)s of one `mpe` call.
+        pub const MACS_MPE: usize = #mp;
+        /// Worst-case multiply(-add)s of one [`State::observe`] plus [`State::marginals`].
+        pub const MACS_OBSERVE_MARGINALS: usize = #mo;
+        /// User-facing id of each place, in place order (evidence row `p` is place `PLACE_IDS[p]`).
+        pub const PLACE_IDS: [u32; NUM_PLACES] = #ids;
+        /// Class names in class-index order.
+        pub const CLASS_NAMES: [&str; NUM_CLASSES] = #names;
+        /// The label meaning "unknown" in label arrays.
+        pub const UNKNOWN: u16 = u16::MAX;
+        /// Local evidence: one row of non-negative likelihoods (one per class) per place.
+        pub type Evidence = [[#t; NUM_CLASSES]; NUM_PLACES];
+        /// Marginals: `P(Y_p = c | evidence)` per place and class.
+        pub type Marginals = [[#t; NUM_CLASSES]; NUM_PLACES];
+        /// One class index per place (`UNKNOWN` = not labelled).
+        pub type Labels = [u16; NUM_PLACES];
+    }
+}
+
+/// `pub fn <name>(<params>) -> Result<T, EvidenceError>`, documented by `docs` (one
+/// string per line): validates the evidence `e` (and runs `more`), then calls
+/// `<name>_unchecked(<args>)`.
+pub(super) fn checked(
+    l: &Lit,
+    docs: &[&str],
+    name: &str,
+    params: TokenStream,
+    args: TokenStream,
+    more: TokenStream,
+) -> TokenStream {
+    let (t, check) = (l.ty(), l.helper("check"));
+    let (f, unchecked) = (format_ident!("{name}"), format_ident!("{name}_unchecked"));
+    quote! {
+        #(#[doc = #docs])*
+        pub fn #f(#params) -> Result<#t, ::graphspn_runtime::EvidenceError> {
+            #check(e, &PLACE_IDS)?;
+            #more
+            #unchecked(#args)
+        }
+    }
+}
+
+/// The validating `labelled_log_likelihood` (evidence and labels checked), calling
+/// `labelled_log_likelihood_unchecked`.
+pub(super) fn checked_labelled(l: &Lit) -> TokenStream {
+    let rt = rt();
+    checked(
+        l,
+        &[
+            " Natural log of the likelihood of the evidence with every labelled place restricted",
+            " to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are",
+            " rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.",
+        ],
+        "labelled_log_likelihood",
+        quote!(labels: &Labels, e: &Evidence),
+        quote!(labels, e),
+        quote!(#rt::check_labels(labels, NUM_CLASSES)?;),
+    )
+}
+
+/// `Map`, this map as a `graphspn_runtime::CompiledMap`.
+pub(super) fn compiled_map_impl(l: &Lit) -> TokenStream {
+    let (rt, t) = (rt(), l.ty());
+    let err = quote!(::graphspn_runtime::EvidenceError);
+    quote! {
+        /// This map as a [`::graphspn_runtime::CompiledMap`], for code generic over compiled maps.
+        pub struct Map;
+
+        impl ::graphspn_runtime::CompiledMap for Map {
+            type Scalar = #t;
+            type Row = [#t; NUM_CLASSES];
+            type State = State;
+            const NUM_PLACES: usize = NUM_PLACES;
+            const NUM_CLASSES: usize = NUM_CLASSES;
+            const MODEL_FAMILY: &'static str = MODEL_FAMILY;
+            const NUM_DECOMPOSITIONS: usize = NUM_DECOMPOSITIONS;
+            const PLACE_IDS: &'static [u32] = &PLACE_IDS;
+            const CLASS_NAMES: &'static [&'static str] = &CLASS_NAMES;
+            const ZERO_ROW: Self::Row = [0.0; NUM_CLASSES];
+            const NEW_STATE: State = State::new();
+            const LANES: usize = LANES;
+            const NUM_COMPONENTS: usize = NUM_COMPONENTS;
+            const STACK_BYTES_LOG_LIKELIHOOD: usize = STACK_BYTES_LOG_LIKELIHOOD;
+            const STACK_BYTES_MARGINALS: usize = STACK_BYTES_MARGINALS;
+            const STACK_BYTES_MPE: usize = STACK_BYTES_MPE;
+            const STACK_BYTES_STATE: usize = STACK_BYTES_STATE;
+            const STATE_BYTES: usize = STATE_BYTES;
+            const MACS_LOG_LIKELIHOOD: usize = MACS_LOG_LIKELIHOOD;
+            const MACS_MARGINALS: usize = MACS_MARGINALS;
+            const MACS_MPE: usize = MACS_MPE;
+            const MACS_OBSERVE_MARGINALS: usize = MACS_OBSERVE_MARGINALS;
+            fn log_likelihood(e: &[Self::Row]) -> Result<#t, #err> {
+                self::log_likelihood(#rt::fixed(e)?)
+            }
+            fn marginals(e: &[Self::Row], out: &mut [Self::Row]) -> Result<#t, #err> {
+                self::marginals(#rt::fixed(e)?, #rt::fixed_mut(out)?)
+            }
+            fn mpe(e: &[Self::Row], labels: &mut [u16]) -> Result<#t, #err> {
+                self::mpe(#rt::fixed(e)?, #rt::fixed_mut(labels)?)
+            }
+            fn labelled_log_likelihood(labels: &[u16], e: &[Self::Row]) -> Result<#t, #err> {
+                self::labelled_log_likelihood(#rt::fixed(labels)?, #rt::fixed(e)?)
+            }
+            fn set_evidence(s: &mut State, place: usize, row: &Self::Row) -> Result<(), #err> {
+                s.set_evidence(place, row)
+            }
+            fn observe(s: &mut State, place: usize, row: &Self::Row) -> Result<(), #err> {
+                s.observe(place, row)
+            }
+            fn clear_evidence(s: &mut State, place: usize) -> Result<(), #err> {
+                s.clear_evidence(place)
+            }
+            fn state_log_likelihood(s: &mut State) -> Result<#t, #err> {
+                s.log_likelihood()
+            }
+            fn state_marginals(s: &mut State, out: &mut [Self::Row]) -> Result<#t, #err> {
+                s.marginals(#rt::fixed_mut(out)?)
+            }
+            fn state_marginal(s: &mut State, place: usize, row: &mut Self::Row) -> Result<(), #err> {
+                s.marginal(place, row)
+            }
+            fn state_evidence(s: &State) -> &[Self::Row] {
+                s.evidence()
+            }
+            fn set_all(s: &mut State, e: &[Self::Row]) -> Result<(), #err> {
+                s.set_all(#rt::fixed(e)?)
+            }
+            fn state_labelled_log_likelihood(s: &mut State, labels: &[u16]) -> Result<#t, #err> {
+                s.labelled_log_likelihood(#rt::fixed(labels)?)
+            }
+            fn state_mpe(s: &mut State, labels: &mut [u16]) -> Result<#t, #err> {
+                s.mpe(#rt::fixed_mut(labels)?)
+            }
+        }
+    }
+}

@@ -1,0 +1,260 @@
+//! What the tree-mixture emitter computes before it emits anything: the scaled
+//! potentials as the generated code rounds them, every forest's tables (post-order
+//! with depths, parents, children, roots) and `ln Z_t`, and the report (stack bounds,
+//! state and table bytes, multiply-adds).
+
+use crate::treemix::{NO_PARENT, RootedForest, SpanningTrees, TreeMixture};
+
+use super::super::emit::Lit;
+use super::super::surface::CodeReport;
+use super::super::{CodegenError, CodegenOptions, Precision, Vectorisation};
+
+/// Sizes and types every emitter of a tree-mixture module needs.
+pub(super) struct Context {
+    /// Scalar type and literals.
+    pub l: Lit,
+    /// Places.
+    pub n: usize,
+    /// Classes.
+    pub c: usize,
+    /// Forests.
+    pub t: usize,
+    /// Classes per lane vector (1: scalar code).
+    pub width: usize,
+    /// Lane vectors per row (`⌈C / width⌉`).
+    pub k: usize,
+    /// Rows of the per-depth stacks: the largest height + 2.
+    pub h: usize,
+    /// Bytes of one scalar.
+    pub scalar: usize,
+}
+
+impl Context {
+    pub fn new(
+        model: &TreeMixture,
+        trees: &SpanningTrees,
+        options: &CodegenOptions,
+    ) -> Result<Context, CodegenError> {
+        let (n, c, t) = (
+            trees.forests.first().map_or(0, RootedForest::num_places),
+            model.num_classes(),
+            trees.len(),
+        );
+        if n > usize::from(u16::MAX) {
+            return Err(CodegenError::BadOption(format!(
+                "at most 65,535 places can be compiled, the map has {n}"
+            )));
+        }
+        if !(2..=256).contains(&c) {
+            return Err(CodegenError::BadOption(format!(
+                "a tree mixture is compiled for 2 to 256 classes, the model has {c}"
+            )));
+        }
+        if !(1..=crate::treemix::model::MAX_TREES).contains(&t) {
+            return Err(CodegenError::BadOption(format!(
+                "a tree mixture is compiled with 1 to {} trees, got {t}",
+                crate::treemix::model::MAX_TREES
+            )));
+        }
+        let width = match (options.vectorisation, options.precision) {
+            (Vectorisation::Scalar, _) => 1,
+            (Vectorisation::Simd, Precision::F32) => 8,
+            (Vectorisation::Simd, Precision::F64) => 4,
+        };
+        let h = trees
+            .forests
+            .iter()
+            .map(|f| f.height() as usize)
+            .max()
+            .unwrap_or(0)
+            + 2;
+        Ok(Context {
+            l: Lit::new(options.precision),
+            n,
+            c,
+            t,
+            width,
+            k: c.div_ceil(width),
+            h,
+            scalar: match options.precision {
+                Precision::F32 => 4,
+                Precision::F64 => 8,
+            },
+        })
+    }
+
+    /// Bytes of one row of lane vectors.
+    pub fn row_bytes(&self) -> usize {
+        self.k * self.width * self.scalar
+    }
+
+    /// A value rounded to the generated code's precision.
+    pub fn round(&self, v: f64) -> f64 {
+        match self.l.precision() {
+            Precision::F32 => f64::from(v as f32),
+            Precision::F64 => v,
+        }
+    }
+}
+
+/// `ψ` and `u` scaled to a largest entry of 1 and rounded as the generated code holds
+/// them (`psi[a · C + b]`).
+pub(super) struct Potentials {
+    pub psi: Vec<f64>,
+    pub unary: Vec<f64>,
+}
+
+impl Potentials {
+    pub fn new(model: &TreeMixture, cx: &Context) -> Potentials {
+        let scaled = |v: &[f64]| {
+            let max = v.iter().cloned().fold(0.0, f64::max);
+            v.iter().map(|x| cx.round(x / max)).collect()
+        };
+        Potentials {
+            psi: scaled(&model.potential),
+            unary: scaled(&model.unary),
+        }
+    }
+}
+
+/// One forest's tables.
+pub(super) struct ForestPlan {
+    /// `(place, depth)` in depth-first post-order (roots and children in increasing
+    /// place order).
+    pub post: Vec<[usize; 2]>,
+    /// Parent of every place (`None`: root).
+    pub parent: Vec<Option<usize>>,
+    /// `kid_start[v]..kid_start[v + 1]` indexes `kids`.
+    pub kid_start: Vec<usize>,
+    pub kids: Vec<usize>,
+    pub roots: Vec<usize>,
+    pub depth: Vec<usize>,
+    /// `ln Z_t = z_exp · ln 2 + z_rem`.
+    pub z_exp: i32,
+    pub z_rem: f64,
+}
+
+impl ForestPlan {
+    pub fn new(f: &RootedForest, pot: &Potentials, c: usize) -> ForestPlan {
+        let n = f.num_places();
+        let children = f.children();
+        let parent: Vec<Option<usize>> = f
+            .parent
+            .iter()
+            .map(|&p| (p != NO_PARENT).then_some(p as usize))
+            .collect();
+        let roots: Vec<usize> = f.roots().into_iter().map(|r| r as usize).collect();
+        let mut kid_start = Vec::with_capacity(n + 1);
+        let mut kids = Vec::new();
+        for ch in &children {
+            kid_start.push(kids.len());
+            kids.extend(ch.iter().map(|&k| k as usize));
+        }
+        kid_start.push(kids.len());
+        // Iterative depth-first search: a place is emitted after all its children.
+        let mut post = Vec::with_capacity(n);
+        for &r in &roots {
+            let mut stack = vec![(r, 0usize)];
+            while let Some(&mut (v, ref mut next)) = stack.last_mut() {
+                if let Some(&k) = children[v].get(*next) {
+                    *next += 1;
+                    stack.push((k as usize, 0));
+                } else {
+                    post.push([v, f.depth[v] as usize]);
+                    stack.pop();
+                }
+            }
+        }
+        let log_z = log_partition(&post, &children, pot, c);
+        let z_exp = (log_z / std::f64::consts::LN_2).round() as i32;
+        ForestPlan {
+            post,
+            parent,
+            kid_start,
+            kids,
+            roots,
+            depth: f.depth.iter().map(|&d| d as usize).collect(),
+            z_exp,
+            z_rem: log_z - f64::from(z_exp) * std::f64::consts::LN_2,
+        }
+    }
+
+    /// Places with a parent.
+    pub fn non_roots(&self) -> usize {
+        self.parent.len() - self.roots.len()
+    }
+}
+
+/// `ln Z_t`: the forest's value `Σ_y Π u(y_v) Π ψ(y_a, y_b)` with the scaled, rounded
+/// potentials (messages normalised by their sums, logs accumulated in `f64`).
+fn log_partition(post: &[[usize; 2]], children: &[Vec<u32>], pot: &Potentials, c: usize) -> f64 {
+    let n = children.len();
+    let mut msg = vec![Vec::new(); n];
+    let mut log_z = 0.0;
+    for &[v, d] in post {
+        let mut b = pot.unary.clone();
+        for &k in &children[v] {
+            for (x, m) in b.iter_mut().zip(&msg[k as usize]) {
+                *x *= m;
+            }
+        }
+        if d == 0 {
+            log_z += b.iter().sum::<f64>().ln();
+            continue;
+        }
+        let m: Vec<f64> = (0..c)
+            .map(|a| (0..c).map(|j| pot.psi[a * c + j] * b[j]).sum())
+            .collect();
+        let s: f64 = m.iter().sum();
+        log_z += s.ln();
+        msg[v] = m.into_iter().map(|x| x / s).collect();
+    }
+    log_z
+}
+
+/// The report: stack bounds (frames of the runtime driver's passes, measured on
+/// Cortex-M4F and x86-64 well below these), state and table bytes, multiply-adds.
+pub(super) fn report(plans: &[ForestPlan], cx: &Context) -> CodeReport {
+    let (n, c, t, h, s) = (cx.n, cx.c, cx.t, cx.h, cx.scalar);
+    let row = cx.row_bytes();
+    // Calls, saved registers and the accumulators of every forest; a pass's row
+    // temporaries (belief, message, evidence factor, its power, the parent's row,
+    // the division, the downward message) with room for spills.
+    // On SIMD hosts every entry point first computes every place's evidence factor.
+    let cache = if cx.width > 1 { n * (row + 4) } else { 0 };
+    let base = 1024 + t * (24 + s) + cache;
+    let temps = 16 * row + 512;
+    let value = h * (row + 1) + temps;
+    let stack_log_likelihood = base + value;
+    let stack_marginals = base + n * row + h * row + temps;
+    let stack_mpe = base + value + n * c;
+    let path = h * (row + 2) + temps;
+    let stack_state = base + path.max(value + n * c);
+    let align = (cx.width * s).max(4);
+    let fields = 2 * n * c * s + 2 * n * c + t * n * row + 4 * t * n + 4 * t + 1;
+    let state_bytes = fields.div_ceil(align) * align;
+    let per_forest =
+        |p: &ForestPlan| 4 * n + 2 * n + 2 * (n + 1) + 2 * p.kids.len() + 2 * p.roots.len() + 48;
+    let table_bytes = plans.iter().map(per_forest).sum::<usize>() + (c + 2) * row;
+    // One matrix–vector product is `C · K` lane-vector multiply-adds.
+    let mv = c * cx.k;
+    let edges: usize = plans.iter().map(ForestPlan::non_roots).sum();
+    let best = plans.iter().map(ForestPlan::non_roots).max().unwrap_or(0);
+    let path_len = |v: usize| plans.iter().map(|p| p.depth[v] + 1).sum::<usize>();
+    let worst_path = (0..n).map(|v| path_len(v) - t).max().unwrap_or(0);
+    CodeReport {
+        lanes: cx.width,
+        components: t * n,
+        stack_log_likelihood,
+        stack_marginals,
+        stack_mpe,
+        stack_state,
+        state_bytes,
+        table_bytes,
+        macs_log_likelihood: edges * mv,
+        macs_marginals: 2 * edges * mv,
+        macs_mpe: (edges + best) * mv,
+        macs_observe_marginals: (worst_path + edges) * mv,
+        units_per_update: (0..n).map(path_len).sum::<usize>() as f64 / n.max(1) as f64,
+    }
+}

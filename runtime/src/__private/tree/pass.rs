@@ -1,0 +1,458 @@
+//! The stateless passes of generated tree-mixture code: log-likelihood (labelled or
+//! not), marginals and MPE (see the module docs of `tree`). On SIMD hosts
+//! (`V::WIDTH > 1`) every entry point first computes the evidence factor `φ` of every
+//! place once ([`Cached`]: `O(places · C)` scratch), which every forest's passes then
+//! share; on microcontrollers each pass computes `φ` where it needs it ([`Rows`]).
+
+use super::super::{Acc, Lanes, Real, above, best, mix};
+use super::{
+    Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec,
+    mul, norm, norm_flush,
+};
+use crate::EvidenceError;
+
+/// `acc · 2^(k - z_exp) · e^(-z_rem)`: a forest's value over its `Z_t`.
+#[inline(always)]
+pub(crate) fn over_z<T: Real>(mut acc: Acc<T>, k: i32, f: &Forest<T>) -> Acc<T> {
+    acc.mul_pow2(k.wrapping_sub(f.z_exp));
+    acc.mul_log(T::ZERO - f.z_rem);
+    acc
+}
+
+/// Runs `body` with the factor source of the target: [`Cached`] (every `φ` computed
+/// once, on the stack) on SIMD hosts, [`Rows`] on microcontrollers.
+#[inline(always)]
+pub(crate) fn with_factors<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    labels: Option<&[u16; N]>,
+    body: impl FnOnce(&dyn Factors<V, K>) -> R,
+) -> R {
+    let rows = Rows { m, e, labels };
+    if V::WIDTH > 1 {
+        cached(&rows, body)
+    } else {
+        body(&rows)
+    }
+}
+
+/// [`with_factors`] on SIMD hosts (its own frame holds the cache).
+#[inline(never)]
+fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
+    rows: &Rows<'_, V, C, K, N>,
+    body: impl FnOnce(&dyn Factors<V, K>) -> R,
+) -> R {
+    let mut phi = [[V::ZERO; K]; N];
+    let mut exp = [0i32; N];
+    rows.fill(&mut phi, &mut exp);
+    body(&Cached {
+        phi: &phi,
+        exp: &exp,
+    })
+}
+
+/// One post-order sweep of forest `f` with a stack of `H` rows (`H` > the forest's
+/// height + 1): the belief of every place (`φ` of the place, then its children's
+/// messages multiplied in as they complete, exactly the order of [`belief`]) goes to
+/// `root(v, b)` for a root and to `message(v, b)` otherwise, whose result is
+/// multiplied into the parent's belief. Returns the sum of the exponents of every
+/// normalisation.
+#[inline(always)]
+fn sweep<V: Lanes, const K: usize, const H: usize>(
+    src: &dyn Factors<V, K>,
+    f: &Forest<V::Scalar>,
+    mut message: impl FnMut(usize, &[V; K]) -> [V; K],
+    mut root: impl FnMut(usize, &[V; K]),
+) -> i32 {
+    let mut slots = [[V::ZERO; K]; H];
+    let mut has = [false; H];
+    let mut k = 0i32;
+    let factor = |v: usize, k: &mut i32| {
+        let (b, eb) = src.factor(v);
+        *k = k.wrapping_add(eb);
+        b
+    };
+    for &[v, d] in f.post {
+        let (v, d) = (usize::from(v), usize::from(d));
+        let b = match (has.get_mut(d + 1), slots.get(d + 1)) {
+            (Some(h), Some(s)) if *h => {
+                *h = false;
+                *s
+            }
+            _ => factor(v, &mut k),
+        };
+        if d == 0 {
+            root(v, &b);
+            continue;
+        }
+        let mut msg = message(v, &b);
+        k = k.wrapping_add(norm(&mut msg));
+        if let (Some(h), Some(s)) = (has.get_mut(d), slots.get_mut(d)) {
+            if !*h {
+                *s = factor(usize::from(f.parent_of(v)), &mut k);
+                *h = true;
+            }
+            mul(s, &msg);
+            k = k.wrapping_add(norm_flush(s));
+        }
+    }
+    k
+}
+
+/// `P_t(α)`, the value of forest `f` (`max`: the max-product value `max_y P_t(y) Π
+/// α^γ`), in one post-order sweep with a stack of `H` rows.
+#[inline(never)]
+fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    f: &Forest<V::Scalar>,
+    max: bool,
+) -> Acc<V::Scalar> {
+    let mut acc = Acc::ONE;
+    let k = sweep::<V, K, H>(
+        src,
+        f,
+        |_, b| {
+            if max {
+                maxvec(&m.psi, b)
+            } else {
+                matvec(&m.psi, b)
+            }
+        },
+        |_, b| acc.mul(if max { hmax(b) } else { hsum(b) }),
+    );
+    over_z(acc, k, f)
+}
+
+/// The values of every forest (see [`tree_value`]).
+#[inline(always)]
+fn values<V: Lanes, const C: usize, const K: usize, const H: usize, const T: usize>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    max: bool,
+) -> [Acc<V::Scalar>; T] {
+    let mut accs = [Acc::ONE; T];
+    for (a, f) in accs.iter_mut().zip(m.forests) {
+        *a = tree_value::<V, C, K, H>(m, src, f, max);
+    }
+    accs
+}
+
+/// `ln S(α)` with every place of `labels` restricted to its label (`u16::MAX`: the
+/// whole row): `ln (1/T) Σ_t P_t(α)`. Relative error a few `ε` per place.
+pub fn tree_log_likelihood<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    labels: &[u16; N],
+) -> Result<V::Scalar, EvidenceError> {
+    let accs = with_factors(m, e, Some(labels), |src| {
+        values::<V, C, K, H, T>(m, src, false)
+    });
+    match mix(&accs) {
+        Some((l, _)) if l > V::Scalar::NEG_INFINITY => Ok(l),
+        _ => Err(EvidenceError::ZeroLikelihood),
+    }
+}
+
+/// Upward pass of forest `f` keeping, in `msgs`, every non-root place's message to
+/// its parent and every root's belief (normalised), and in `exps` (when given) each
+/// place's exponent; returns the product of the roots' sums and the sum of the
+/// exponents (the forest's value over `Z_t` is their product over `Z_t`).
+#[inline(never)]
+pub(crate) fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usize>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    f: &Forest<V::Scalar>,
+    msgs: &mut [[V; K]; N],
+    mut exps: Option<&mut [i32; N]>,
+) -> (Acc<V::Scalar>, i32) {
+    let mut k = 0i32;
+    let mut acc = Acc::ONE;
+    for &[v, d] in f.post {
+        let v = usize::from(v);
+        let (b, eb) = belief(src, f, msgs, v);
+        let (out, ev) = if d == 0 {
+            acc.mul(hsum(&b));
+            (b, eb)
+        } else {
+            let mut msg = matvec(&m.psi, &b);
+            let em = norm(&mut msg);
+            (msg, eb.wrapping_add(em))
+        };
+        if let Some(s) = msgs.get_mut(v) {
+            *s = out;
+        }
+        if let Some(x) = exps.as_deref_mut().and_then(|x| x.get_mut(v)) {
+            *x = ev;
+        }
+        k = k.wrapping_add(ev);
+    }
+    (acc, k)
+}
+
+/// `r = a / (b + pad)`: the parent's full belief without the child's message (the
+/// padding lanes, 0 in both, stay 0; rows without padding lanes skip the addition).
+#[inline(always)]
+fn without<V: Lanes, const C: usize, const K: usize>(
+    a: &[V; K],
+    b: &[V; K],
+    pad: &[V; K],
+) -> [V; K] {
+    let mut r = *a;
+    if K * V::WIDTH > C {
+        for ((x, &y), &p) in r.iter_mut().zip(b).zip(pad) {
+            *x = *x / (y + p);
+        }
+    } else {
+        for (x, &y) in r.iter_mut().zip(b) {
+            *x = *x / y;
+        }
+    }
+    r
+}
+
+/// `full(v) = belief(v) ⊙ ψ·(full(parent) / m_v)`, normalised. The downward message is
+/// not normalised: `full(parent)`'s largest entry is in `[1, 2)` and `m_v`'s entries in
+/// `[2^-20, 2)`, so its entries lie in `[2^-21, C·2^21)` and every nonzero product with
+/// the belief stays far inside the normal range.
+#[inline(always)]
+pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usize>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    f: &Forest<V::Scalar>,
+    msgs: &[[V; K]; N],
+    v: usize,
+    parent_full: &[V; K],
+) -> [V; K] {
+    let Some(mv) = msgs.get(v) else {
+        return [V::ZERO; K];
+    };
+    let down = matvec(&m.psi, &without::<V, C, K>(parent_full, mv, &m.pad));
+    let (mut b, _) = belief(src, f, msgs, v);
+    mul(&mut b, &down);
+    norm_flush(&mut b);
+    b
+}
+
+/// `out[v] += w · full / Σ full`.
+#[inline(always)]
+pub(crate) fn add_marginal<V: Lanes, const K: usize, const C: usize>(
+    out: &mut [V::Scalar; C],
+    full: &[V; K],
+    w: V::Scalar,
+) {
+    let s = hsum(full);
+    if !above(s, V::Scalar::ZERO) {
+        return;
+    }
+    let k = w / s;
+    for (o, &x) in out.iter_mut().zip(full.iter().flat_map(|v| v.lanes())) {
+        *o += k * x;
+    }
+}
+
+/// Downward pass of forest `f` from its stored upward pass `msgs` (see
+/// [`tree_upward`]): adds `w · P_t(Y_v | α)` to `out[v]` for every place, with a stack
+/// of `H` rows (one per depth).
+#[inline(never)]
+pub(crate) fn tree_downward<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    f: &Forest<V::Scalar>,
+    msgs: &[[V; K]; N],
+    w: V::Scalar,
+    out: &mut [[V::Scalar; C]; N],
+) {
+    let mut stack = [[V::ZERO; K]; H];
+    for &[v, d] in f.post.iter().rev() {
+        let (v, d) = (usize::from(v), usize::from(d));
+        let full = match d.checked_sub(1).and_then(|p| stack.get(p)) {
+            Some(pf) => full_below(m, src, f, msgs, v, pf),
+            None => msgs.get(v).copied().unwrap_or([V::ZERO; K]),
+        };
+        if let Some(s) = stack.get_mut(d) {
+            *s = full;
+        }
+        if let Some(o) = out.get_mut(v) {
+            add_marginal(o, &full, w);
+        }
+    }
+}
+
+/// Every row of `out` divided by its sum.
+#[inline(always)]
+pub(crate) fn normalise_rows<T: Real, const C: usize, const N: usize>(out: &mut [[T; C]; N]) {
+    for row in out.iter_mut() {
+        let mut s = T::ZERO;
+        for &x in row.iter() {
+            s += x;
+        }
+        if s > T::ZERO {
+            let inv = T::ONE / s;
+            for x in row.iter_mut() {
+                *x *= inv;
+            }
+        }
+    }
+}
+
+/// Writes `P(Y_v = c | α)` of every place into `out` (mixed as the model says) and
+/// returns `ln S(α)`: per forest a stored upward pass (`O(places · C)` scratch) and a
+/// downward pass. With posterior mixing the forests' weights are accumulated online
+/// (the running sum is rescaled when a larger forest value appears).
+pub fn tree_marginals<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    out: &mut [[V::Scalar; C]; N],
+) -> Result<V::Scalar, EvidenceError> {
+    *out = [[V::Scalar::ZERO; C]; N];
+    let accs = with_factors(m, e, None, |src| {
+        marginals_from::<V, C, K, N, H, T>(m, src, out)
+    });
+    let Some((l, _)) = mix(&accs).filter(|(l, _)| *l > V::Scalar::NEG_INFINITY) else {
+        return Err(EvidenceError::ZeroLikelihood);
+    };
+    normalise_rows(out);
+    Ok(l)
+}
+
+/// The forests' passes of [`tree_marginals`]; returns the forests' values.
+#[inline(always)]
+fn marginals_from<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    out: &mut [[V::Scalar; C]; N],
+) -> [Acc<V::Scalar>; T] {
+    let one = V::Scalar::ONE;
+    let mut msgs = [[V::ZERO; K]; N];
+    let mut accs = [Acc::ONE; T];
+    let mut top: Option<Acc<V::Scalar>> = None;
+    for (a, f) in accs.iter_mut().zip(m.forests) {
+        let (acc, k) = tree_upward(m, src, f, &mut msgs, None);
+        let acc = over_z(acc, k, f);
+        *a = acc;
+        if acc.is_zero() {
+            continue;
+        }
+        let w = match top {
+            _ if m.average => one,
+            None => {
+                top = Some(acc);
+                one
+            }
+            Some(t) => {
+                let r = acc.ln_ratio(&t);
+                if r > V::Scalar::ZERO {
+                    let down = (V::Scalar::ZERO - r).exp();
+                    for x in out.iter_mut().flatten() {
+                        *x *= down;
+                    }
+                    top = Some(acc);
+                    one
+                } else {
+                    r.exp()
+                }
+            }
+        };
+        tree_downward::<V, C, K, N, H>(m, src, f, &msgs, w, out);
+    }
+    accs
+}
+
+/// Labels of the max-product labelling of forest `f`: a max-product sweep keeping
+/// `arg[v][a]` (the best class of `v` when its parent has class `a`), then labels
+/// top-down.
+#[inline(never)]
+fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    f: &Forest<V::Scalar>,
+    labels: &mut [u16; N],
+) {
+    let mut arg = [[0u8; C]; N];
+    sweep::<V, K, H>(
+        src,
+        f,
+        |v, b| match arg.get_mut(v) {
+            Some(a) => argvec(&m.psi, b, a),
+            None => [V::ZERO; K],
+        },
+        |v, b| {
+            if let Some(l) = labels.get_mut(v) {
+                *l = argmax(b);
+            }
+        },
+    );
+    for &[v, d] in f.post.iter().rev() {
+        let v = usize::from(v);
+        if d == 0 {
+            continue;
+        }
+        let p = usize::from(f.parent_of(v));
+        let lp = labels.get(p).map_or(0, |&l| usize::from(l));
+        let best = arg
+            .get(v)
+            .and_then(|a| a.get(lp))
+            .map_or(0, |&x| u16::from(x));
+        if let Some(l) = labels.get_mut(v) {
+            *l = best;
+        }
+    }
+}
+
+/// Writes the most probable `(forest, labelling)` pair's labelling into `labels` and
+/// returns its natural-log value `max_t max_y ln((1/T) P_t(y) Π_v α_v(y_v)^γ)` (ties:
+/// the first forest; within a forest the smallest class).
+pub fn tree_mpe<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
+    m: &TreeModel<V, C, K>,
+    e: &[[V::Scalar; C]; N],
+    labels: &mut [u16; N],
+) -> Result<V::Scalar, EvidenceError> {
+    with_factors(m, e, None, |src| {
+        let accs = values::<V, C, K, H, T>(m, src, true);
+        let (Some(t), Some(f)) = (best(&accs), best(&accs).and_then(|t| m.forests.get(t))) else {
+            return Err(EvidenceError::ZeroLikelihood);
+        };
+        let v =
+            accs.get(t).map_or(V::Scalar::NEG_INFINITY, |a| a.ln()) - V::Scalar::from_index(T).ln();
+        if !above(v, V::Scalar::NEG_INFINITY) {
+            return Err(EvidenceError::ZeroLikelihood);
+        }
+        mpe_labels::<V, C, K, N, H>(m, src, f, labels);
+        Ok(v)
+    })
+}

@@ -1,0 +1,439 @@
+//! The streaming state of generated tree-mixture code: every forest's stored upward
+//! pass, kept current one place at a time, and each place's fused observations in an
+//! exact form.
+//!
+//! # Memory
+//!
+//! Per forest and place one row (the message to the parent; a root's belief) and one
+//! exponent; per place its evidence row (what `evidence()` returns), and per class the
+//! fused observation as a mantissa in `[1, 2)` and a `u16` deficit: how many binary
+//! orders of magnitude the class lies below the place's best class. Bytes:
+//! `T·N·(K·size_of(V) + 4) + N·C·(2·size_of(scalar) + 2) + 4·T + 4`.
+//!
+//! # Exact fusion (`observe`)
+//!
+//! The fused row of a place is the product of its observations. Each class keeps its
+//! product as `mantissa · 2^(best − deficit)`: one rounding per observation (relative
+//! `ε/2`), no underflow however many observations arrive, and a class that falls far
+//! behind is never locked — evidence for it raises it again exactly as the product
+//! says. A deficit saturates at 65,535 (a class `2^-65535 ≈ e^-45425` times the best):
+//! only then does the state deviate from the exact product, and always towards the
+//! class recovering sooner. The row the inference uses (and `evidence()` returns) is
+//! `mantissa · 2^-deficit` (largest entry in `[1, 2)`), with classes more than 2^126
+//! (`f32`) times below the best set to 0, which `φ`'s flush rule would drop anyway.
+//!
+//! # Costs
+//!
+//! An update recomputes the place's path to the root in every forest: `Σ_t (depth_t(v)
+//! + 1)` beliefs and matrix–vector products. `log_likelihood` reads the roots (`O(T·C)`),
+//! `marginal(place)` walks each forest from the root to the place (`O(T·height·C²)`),
+//! `marginals` is one downward pass per forest (`O(T·N·C²)`).
+
+use super::super::{Acc, Lanes, Real, check_row, mix};
+use super::pass::{
+    add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
+};
+use super::{Forest, Rows, TreeModel, belief, hsum, matvec, norm};
+use crate::EvidenceError;
+
+/// Largest deficit of a fused class (see the module docs).
+const MAX_DEFICIT: i32 = u16::MAX as i32;
+
+/// The caller-owned cache of a compiled tree mixture (see the module docs); all zeros
+/// when new (a `static` one sits in `.bss`): rows of ones are written by the first call
+/// that needs them.
+#[derive(Clone)]
+pub struct TreeState<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize> {
+    rows: [[V::Scalar; C]; N],
+    mant: [[V::Scalar; C]; N],
+    deficit: [[u16; C]; N],
+    msg: [[[V; K]; N]; T],
+    exp: [[i32; N]; T],
+    total: [i32; T],
+    ready: bool,
+}
+
+impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize> Default
+    for TreeState<V, C, K, N, T>
+{
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// `place`'s id, or `WrongShape` when `place` is not a place index.
+fn place_id<const N: usize>(ids: &[u32; N], place: usize) -> Result<u32, EvidenceError> {
+    ids.get(place).copied().ok_or(EvidenceError::WrongShape {
+        place,
+        expected: N,
+        found: place,
+    })
+}
+
+/// The exact form of a row: per class its mantissa and deficit below the best class.
+fn exact_form<T: Real, const C: usize>(row: &[T; C]) -> ([T; C], [u16; C]) {
+    let mut mant = [T::ZERO; C];
+    let mut ex = [0i32; C];
+    let mut best = i32::MIN;
+    for ((m, x), &a) in mant.iter_mut().zip(ex.iter_mut()).zip(row) {
+        if a > T::ZERO {
+            (*m, *x) = a.split();
+            best = best.max(*x);
+        }
+    }
+    (mant, deficits(&mant, &ex, best))
+}
+
+/// Deficits `best − x` of the nonzero classes, saturated at [`MAX_DEFICIT`].
+fn deficits<T: Real, const C: usize>(mant: &[T; C], ex: &[i32; C], best: i32) -> [u16; C] {
+    let mut d = [0u16; C];
+    for ((o, &m), &x) in d.iter_mut().zip(mant).zip(ex) {
+        if m > T::ZERO {
+            *o = best.saturating_sub(x).clamp(0, MAX_DEFICIT) as u16;
+        }
+    }
+    d
+}
+
+/// The row of an exact form: `mantissa · 2^-deficit` (exact), classes beyond the normal
+/// range 0, divided by its largest entry (which becomes exactly 1).
+fn row_of<T: Real, const C: usize>(mant: &[T; C], def: &[u16; C]) -> [T; C] {
+    let mut r = [T::ZERO; C];
+    let mut max = T::ZERO;
+    for ((o, &m), &d) in r.iter_mut().zip(mant).zip(def) {
+        let d = i32::from(d);
+        if d <= -T::MIN_EXP {
+            *o = m * T::pow2(-d);
+            if *o > max {
+                max = *o;
+            }
+        }
+    }
+    if max > T::ZERO {
+        for o in r.iter_mut() {
+            *o = *o / max;
+        }
+    }
+    r
+}
+
+impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
+    TreeState<V, C, K, N, T>
+{
+    /// A state without evidence (all zeros in memory).
+    pub const fn new() -> Self {
+        TreeState {
+            rows: [[<V::Scalar as Real>::ZERO; C]; N],
+            mant: [[<V::Scalar as Real>::ZERO; C]; N],
+            deficit: [[0; C]; N],
+            msg: [[[V::ZERO; K]; N]; T],
+            exp: [[0; N]; T],
+            total: [0; T],
+            ready: false,
+        }
+    }
+
+    /// Whether the state holds rows (`false` until the first update or query: then
+    /// every row is a row of ones).
+    pub fn is_ready(&self) -> bool {
+        self.ready
+    }
+
+    /// The evidence rows (meaningful once [`TreeState::is_ready`]).
+    pub fn rows(&self) -> &[[V::Scalar; C]; N] {
+        &self.rows
+    }
+
+    /// Rows of ones and every forest evaluated, on first use.
+    fn fresh(&mut self, m: &TreeModel<V, C, K>) {
+        if !self.ready {
+            let one = V::Scalar::ONE;
+            self.rows = [[one; C]; N];
+            self.mant = [[one; C]; N];
+            self.deficit = [[0; C]; N];
+            self.refresh(m);
+        }
+    }
+
+    /// Calls `each(rows, forest, messages, exponents, total)` for every forest.
+    fn each_forest(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        mut each: impl FnMut(
+            &Rows<'_, V, C, K, N>,
+            &Forest<V::Scalar>,
+            &mut [[V; K]; N],
+            &mut [i32; N],
+            &mut i32,
+        ),
+    ) {
+        let rows = Rows {
+            m,
+            e: &self.rows,
+            labels: None,
+        };
+        for (((f, msgs), exps), tot) in m
+            .forests
+            .iter()
+            .zip(self.msg.iter_mut())
+            .zip(self.exp.iter_mut())
+            .zip(self.total.iter_mut())
+        {
+            each(&rows, f, msgs, exps, tot);
+        }
+    }
+
+    /// Every forest's stored upward pass from the current rows.
+    fn refresh(&mut self, m: &TreeModel<V, C, K>) {
+        self.each_forest(m, |rows, f, msgs, exps, tot| {
+            *tot = tree_upward(m, rows, f, msgs, Some(exps)).1;
+        });
+        self.ready = true;
+    }
+
+    /// Recomputes the path from `place` to its root in every forest.
+    fn update(&mut self, m: &TreeModel<V, C, K>, place: usize) {
+        self.each_forest(m, |rows, f, msgs, exps, tot| {
+            let mut a = place;
+            for _ in 0..N {
+                let (b, eb) = belief(rows, f, msgs, a);
+                let parent = f.parent_of(a);
+                let root = usize::from(parent) >= N;
+                let (out, ev) = if root {
+                    (b, eb)
+                } else {
+                    let mut mm = matvec(&m.psi, &b);
+                    let em = norm(&mut mm);
+                    (mm, eb.wrapping_add(em))
+                };
+                if let (Some(s), Some(x)) = (msgs.get_mut(a), exps.get_mut(a)) {
+                    *s = out;
+                    *tot = tot.wrapping_add(ev).wrapping_sub(*x);
+                    *x = ev;
+                }
+                if root {
+                    break;
+                }
+                a = usize::from(parent);
+            }
+        });
+    }
+
+    /// Stores the row and exact form of `place` and updates the forests.
+    fn store(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        place: usize,
+        row: [V::Scalar; C],
+        exact: ([V::Scalar; C], [u16; C]),
+    ) {
+        if let (Some(r), Some(x), Some(d)) = (
+            self.rows.get_mut(place),
+            self.mant.get_mut(place),
+            self.deficit.get_mut(place),
+        ) {
+            *r = row;
+            (*x, *d) = exact;
+        }
+        self.update(m, place);
+    }
+
+    /// Sets the evidence row of `place` (kept as given) and updates the forests. An
+    /// invalid row is rejected and nothing changes.
+    pub fn set_evidence(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        ids: &[u32; N],
+        place: usize,
+        row: &[V::Scalar; C],
+    ) -> Result<(), EvidenceError> {
+        check_row(row, place, place_id(ids, place)?)?;
+        self.fresh(m);
+        self.store(m, place, *row, exact_form(row));
+        Ok(())
+    }
+
+    /// Fuses an observation into the place's row exactly (see the module docs) and
+    /// updates the forests. An invalid row, or one leaving the place no class, is
+    /// rejected and nothing changes.
+    pub fn observe(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        ids: &[u32; N],
+        place: usize,
+        row: &[V::Scalar; C],
+    ) -> Result<(), EvidenceError> {
+        let id = place_id(ids, place)?;
+        check_row(row, place, id)?;
+        self.fresh(m);
+        let (Some(mant), Some(def)) = (self.mant.get(place), self.deficit.get(place)) else {
+            return Ok(());
+        };
+        let zero = V::Scalar::ZERO;
+        let mut nm = [zero; C];
+        let mut ex = [0i32; C];
+        let mut best = i32::MIN;
+        for ((((o, x), &a), &m0), &d) in
+            nm.iter_mut().zip(ex.iter_mut()).zip(row).zip(mant).zip(def)
+        {
+            if a > zero && m0 > zero {
+                let (ma, ea) = a.split();
+                let (mp, ep) = (m0 * ma).split();
+                *o = mp;
+                *x = ea.wrapping_add(ep).wrapping_sub(i32::from(d));
+                best = best.max(*x);
+            }
+        }
+        if best == i32::MIN {
+            return Err(EvidenceError::NoMass {
+                place,
+                place_id: u64::from(id),
+            });
+        }
+        let d = deficits(&nm, &ex, best);
+        self.store(m, place, row_of(&nm, &d), (nm, d));
+        Ok(())
+    }
+
+    /// Removes the evidence of `place` (a row of ones) and updates the forests.
+    pub fn clear_evidence(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        ids: &[u32; N],
+        place: usize,
+    ) -> Result<(), EvidenceError> {
+        place_id(ids, place)?;
+        self.fresh(m);
+        let one = [V::Scalar::ONE; C];
+        self.store(m, place, one, (one, [0; C]));
+        Ok(())
+    }
+
+    /// Replaces every row (checked first: on error nothing changes) and re-evaluates
+    /// every forest.
+    pub fn set_all(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        ids: &[u32; N],
+        e: &[[V::Scalar; C]; N],
+    ) -> Result<(), EvidenceError> {
+        for (p, (row, &id)) in e.iter().zip(ids).enumerate() {
+            check_row(row, p, id)?;
+        }
+        self.rows = *e;
+        for ((r, x), d) in e
+            .iter()
+            .zip(self.mant.iter_mut())
+            .zip(self.deficit.iter_mut())
+        {
+            (*x, *d) = exact_form(r);
+        }
+        self.refresh(m);
+        Ok(())
+    }
+
+    /// Every forest's value over `Z_t`, from the cache.
+    fn values(&self, m: &TreeModel<V, C, K>) -> [Acc<V::Scalar>; T] {
+        let mut accs = [Acc::ONE; T];
+        for (((a, f), msgs), &tot) in accs
+            .iter_mut()
+            .zip(m.forests)
+            .zip(&self.msg)
+            .zip(&self.total)
+        {
+            let mut acc = Acc::ONE;
+            for &r in f.roots {
+                if let Some(b) = msgs.get(usize::from(r)) {
+                    acc.mul(hsum(b));
+                }
+            }
+            *a = over_z(acc, tot, f);
+        }
+        accs
+    }
+
+    /// `ln S` and the forests' weights in the marginals (posterior `P(t | α)`, or `1`
+    /// each when the model averages).
+    fn mixed(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+    ) -> Result<(V::Scalar, [V::Scalar; T]), EvidenceError> {
+        self.fresh(m);
+        match mix(&self.values(m)) {
+            Some((l, w)) if l > V::Scalar::NEG_INFINITY => {
+                Ok((l, if m.average { [V::Scalar::ONE; T] } else { w }))
+            }
+            _ => Err(EvidenceError::ZeroLikelihood),
+        }
+    }
+
+    /// `ln S` of the current rows, from the cache (`O(T·C)`).
+    pub fn log_likelihood(&mut self, m: &TreeModel<V, C, K>) -> Result<V::Scalar, EvidenceError> {
+        self.mixed(m).map(|(l, _)| l)
+    }
+
+    /// The marginals of every place from the cache (one downward pass per forest, a
+    /// stack of `H` rows); returns `ln S`.
+    pub fn marginals<const H: usize>(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        out: &mut [[V::Scalar; C]; N],
+    ) -> Result<V::Scalar, EvidenceError> {
+        let (l, w) = self.mixed(m)?;
+        *out = [[V::Scalar::ZERO; C]; N];
+        with_factors(m, &self.rows, None, |src| {
+            for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
+                tree_downward::<V, C, K, N, H>(m, src, f, msgs, wt, out);
+            }
+        });
+        normalise_rows(out);
+        Ok(l)
+    }
+
+    /// The marginal of one place from the cache: each forest walked from the root down
+    /// to the place (`H` > the height + 1).
+    pub fn marginal<const H: usize>(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        ids: &[u32; N],
+        place: usize,
+        out: &mut [V::Scalar; C],
+    ) -> Result<(), EvidenceError> {
+        place_id(ids, place)?;
+        let (_, w) = self.mixed(m)?;
+        *out = [V::Scalar::ZERO; C];
+        let rows = Rows {
+            m,
+            e: &self.rows,
+            labels: None,
+        };
+        for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
+            // The path from the place up to its root.
+            let mut path = [0u16; H];
+            let mut len = 0;
+            let mut a = place as u16;
+            for p in path.iter_mut() {
+                *p = a;
+                len += 1;
+                a = f.parent_of(usize::from(a));
+                if usize::from(a) >= N {
+                    break;
+                }
+            }
+            let mut steps = path.iter().take(len).rev();
+            let Some(full) = steps.next().and_then(|&r| msgs.get(usize::from(r))) else {
+                continue;
+            };
+            let mut full = *full;
+            for &c in steps {
+                full = full_below(m, &rows, f, msgs, usize::from(c), &full);
+            }
+            add_marginal(out, &full, wt);
+        }
+        let mut one = [*out];
+        normalise_rows(&mut one);
+        let [row] = one;
+        *out = row;
+        Ok(())
+    }
+}
