@@ -95,3 +95,72 @@ pub fn count(setting: &str, value: u64, lo: u64, hi: u64) -> Result<(), DomainEr
         domain: format!("must be from {lo} to {hi}"),
     })
 }
+
+/// Largest number of evidence rounds per map and noise level of an experiment
+/// (`rounds`, `--rounds`).
+pub const MAX_ROUNDS: usize = 1000;
+
+/// Decompositions an instance GraphSPN mixes (`count`, `--decompositions`, `--count`):
+/// 1 to [`crate::decompose::MAX_DECOMPOSITIONS`].
+pub fn decompositions(setting: &str, value: usize) -> Result<(), DomainError> {
+    count(
+        setting,
+        value as u64,
+        1,
+        crate::decompose::MAX_DECOMPOSITIONS as u64,
+    )
+}
+
+/// Spanning trees of a tree mixture (`trees`, `--trees`, `compile --count`): 1 to
+/// [`crate::treemix::MAX_TREES`].
+pub fn trees(setting: &str, value: usize) -> Result<(), DomainError> {
+    count(setting, value as u64, 1, crate::treemix::MAX_TREES as u64)
+}
+
+/// Evidence rounds per map and noise level (`rounds`, `--rounds`): 1 to
+/// [`MAX_ROUNDS`].
+pub fn rounds(setting: &str, value: usize) -> Result<(), DomainError> {
+    count(setting, value as u64, 1, MAX_ROUNDS as u64)
+}
+
+/// Maps per building (`maps_per_building`, `--maps`, `--max-maps`): at least 1.
+pub fn maps(setting: &str, value: usize) -> Result<(), DomainError> {
+    count(setting, value as u64, 1, u64::MAX)
+}
+
+/// Places of a synthetic office floor (`graphspn generate --places`, `--synthetic`):
+/// 10 to 100,000.
+pub fn synthetic_places(setting: &str, value: usize) -> Result<(), DomainError> {
+    count(setting, value as u64, 10, 100_000)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn domains_name_the_setting_the_value_and_the_interval() {
+        let e = closed("prior_correction", -0.5, 0.0, 1.0).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "prior_correction = -0.5: must be finite and in [0, 1]"
+        );
+        assert_eq!(
+            e.under("graphspn").setting,
+            "graphspn.prior_correction".to_string()
+        );
+        let e = left_open("tolerance", 0.0, 0.0, 1.0).unwrap_err();
+        assert!(e.domain.contains("(0, 1]"), "{e}");
+        let e = real("x", -1.0, (0.0, End::Closed), (f64::INFINITY, End::Open)).unwrap_err();
+        assert!(e.domain.contains("≥ 0"), "{e}");
+        for v in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert!(closed("x", v, f64::MIN, f64::MAX).is_err());
+        }
+        assert!(closed("x", 1.0, 0.0, 1.0).is_ok());
+        assert!(left_open("x", 1.0, 0.0, 1.0).is_ok());
+        assert!(count("n", 0, 1, 10).is_err() && count("n", 11, 1, 10).is_err());
+        assert!(decompositions("count", 1000).is_ok() && decompositions("count", 1001).is_err());
+        assert!(trees("trees", 64).is_ok() && trees("trees", 0).is_err());
+        assert!(rounds("rounds", 0).is_err() && maps("maps", 0).is_err());
+    }
+}

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use graphspn_compiler::decompose::{Decomposition, DecompositionStrategy};
-use graphspn_compiler::domain::DomainError;
+use graphspn_compiler::domain::{self, DomainError};
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::instance::Instance;
 use graphspn_compiler::learn::Model;
@@ -155,17 +155,22 @@ pub fn load_any_model(path: &Path) -> Result<AnyModel> {
     Ok(AnyModel::load(path)?)
 }
 
-/// Checks a number of decompositions given with `flag` before any work.
+/// Checks a number of decompositions given with `flag` before any work, against its
+/// domain ([`graphspn_compiler::domain::decompositions`]).
 pub fn check_decomposition_count(flag: &str, count: usize) -> Result<()> {
-    if count == 0 {
-        bail!("{flag} 0: the instance needs at least one decomposition");
-    }
-    if count > MAX_DECOMPOSITIONS {
-        bail!(
-            "{flag} {count}: at most {MAX_DECOMPOSITIONS} (each decomposition adds a copy of the map's template networks)"
-        );
-    }
-    Ok(())
+    domain::decompositions("count", count).map_err(|e| {
+        anyhow::anyhow!(
+            "{flag} {}: {} (each decomposition adds a copy of the map's template networks)",
+            e.value,
+            e.domain
+        )
+    })
+}
+
+/// A flag's value checked by a [`graphspn_compiler::domain`] function, as the flag's
+/// error: `--flag value: must be …`.
+pub fn flag_domain(flag: &str, checked: Result<(), DomainError>) -> Result<()> {
+    checked.map_err(|e| anyhow::anyhow!("{flag} {}: {}", e.value, e.domain))
 }
 
 /// How many decompositions the decompositions file `path` (given with `flag`) holds,

@@ -9,13 +9,13 @@ use clap::Args;
 use graphspn_compiler::codegen::{
     AnyInputs, Builder, CodeReport, Precision, Vectorisation, check_module_name, is_generated_file,
 };
+use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
-use graphspn_compiler::treemix::model::MAX_TREES;
 
 use super::budget::{Budget, Work, read_map_within};
 use super::common::{
     check_decomposition_count, count_decompositions_file, declare_map, decompositions_for,
-    load_any_model, parse_strategy,
+    flag_domain, load_any_model, parse_strategy,
 };
 
 /// Largest map `compile` takes: the generator's limit (its tables index places with
@@ -147,13 +147,9 @@ pub fn run(args: CompileArgs) -> Result<()> {
                     args.model.display()
                 );
             }
-            let trees = match args.count {
-                Some(count) if !(1..=MAX_TREES).contains(&count) => {
-                    bail!("--count {count}: a tree mixture takes 1 to {MAX_TREES} trees")
-                }
-                Some(count) => count,
-                None => t.trees,
-            };
+            let trees = args.count.unwrap_or(t.trees);
+            // A tree mixture's --count is its number of spanning trees.
+            flag_domain("--count", domain::trees("trees", trees))?;
             Budget::new(
                 format!("--count {trees}"),
                 Work::Trees {

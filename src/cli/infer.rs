@@ -19,15 +19,16 @@ use serde_json::json;
 use super::budget::{Budget, Work, candidates, read_map_within};
 use super::common::{
     check_decomposition_count, component_instance_of, count_decompositions_file, data_dir,
-    declare_map, decompositions_for, load_any_model, parse_strategy,
+    declare_map, decompositions_for, flag_domain, load_any_model, parse_strategy,
 };
 use super::evidence::read_evidence;
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
+use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::interpreter::{Marginals, Mpe};
 use graphspn_compiler::spn::Mixing;
-use graphspn_compiler::treemix::{MAX_TREES, TreeInstance};
+use graphspn_compiler::treemix::TreeInstance;
 
 /// Parses `--mixing` (`posterior` or `average`).
 fn parse_mixing(s: &str) -> Result<Mixing, String> {
@@ -195,10 +196,8 @@ pub fn run(args: InferArgs) -> Result<()> {
             if let Some((flag, _)) = gspn_only.iter().find(|f| f.1) {
                 bail!("{flag} applies to GraphSPN models; --model holds a tree mixture");
             }
-            if let Some(t) = args.trees
-                && !(1..=MAX_TREES).contains(&t)
-            {
-                bail!("--trees {t}: give 1 to {MAX_TREES} trees");
+            if let Some(t) = args.trees {
+                flag_domain("--trees", domain::trees("trees", t))?;
             }
             let trees = args.trees.unwrap_or(model.trees);
             let work = Work::Trees {

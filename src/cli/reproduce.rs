@@ -6,6 +6,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::decompose::DecompositionStrategy;
+use graphspn_compiler::domain;
 use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
 use graphspn_compiler::experiments::report::{validation_markdown, write_outputs};
 use graphspn_compiler::experiments::reproduce::{ReproduceConfig, load_data, run};
@@ -16,7 +17,7 @@ use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
 use std::collections::BTreeMap;
 
-use super::common::{check_buildings, flag_error, require_data_dir};
+use super::common::{check_buildings, flag_domain, flag_error, require_data_dir};
 use super::output::{Outputs, write_folder};
 
 /// Arguments of `graphspn reproduce`.
@@ -150,9 +151,7 @@ impl ProtocolOptions {
                 .collect::<Result<_, _>>()?;
         }
         if let Some(r) = self.rounds {
-            if r == 0 {
-                bail!("--rounds 0: run at least one round");
-            }
+            flag_domain("--rounds", domain::rounds("rounds", r))?;
             cfg.rounds = r;
         }
         if self.no_novelty {
@@ -265,7 +264,10 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
             .map_err(|e| {
                 flag_error(
                     e,
-                    &[("count", "--decompositions"), ("candidates", "--candidates")],
+                    &[
+                        ("count", "--decompositions"),
+                        ("candidates", "--candidates"),
+                    ],
                 )
             })?;
     }
@@ -285,9 +287,7 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     }
     args.protocol.apply(&mut cfg)?;
     if let Some(m) = args.maps {
-        if m == 0 {
-            bail!("--maps 0: test at least one map per building");
-        }
+        flag_domain("--maps", domain::maps("maps_per_building", m))?;
         cfg.maps_per_building = m;
     }
     if let Some(p) = &args.settings {

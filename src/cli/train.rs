@@ -184,7 +184,9 @@ pub fn run(args: TrainArgs) -> Result<()> {
             if let Some(t) = args.temperature {
                 settings.temperature = t;
             }
-            settings.check().map_err(|e| flag_error(e, &GRAPHSPN_FLAGS))?;
+            settings
+                .check()
+                .map_err(|e| flag_error(e, &GRAPHSPN_FLAGS))?;
             Plan::Graphspn(settings)
         }
     };

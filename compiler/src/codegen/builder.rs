@@ -423,7 +423,8 @@ impl Builder {
     }
 
     /// File stem of the output, `<name>.rs` in the output directory (default `map`);
-    /// must be a Rust identifier.
+    /// must be a Rust identifier that can name a module ([`check_module_name`]:
+    /// not a keyword), checked by [`Builder::run`] before the inputs are read.
     pub fn module_name(mut self, name: impl Into<String>) -> Self {
         self.module_name = name.into();
         self
@@ -596,11 +597,13 @@ impl Builder {
 
     /// The file [`Builder::run`] writes.
     pub fn output_path(&self) -> Result<PathBuf, BuildError> {
+        // Checked even with an exact output file: the name is the module the file is
+        // meant for (`pub mod <name> { include!(...) }`).
+        let name = &self.module_name;
+        check_module_name(name)?;
         if let Some(f) = &self.out_file {
             return Ok(f.clone());
         }
-        let name = &self.module_name;
-        check_module_name(name)?;
         let dir = match &self.out_dir {
             Some(d) => d.clone(),
             None => std::env::var_os("OUT_DIR")
@@ -621,6 +624,8 @@ impl Builder {
     /// An existing output file without the `@generated` line is an error
     /// ([`BuildError::NotGenerated`]) unless [`Builder::overwrite`] allows replacing it.
     pub fn run(self) -> Result<PathBuf, BuildError> {
+        // Before the inputs are read: a bad name would fail only at the end.
+        check_module_name(&self.module_name)?;
         if self.cargo_lines {
             println!("cargo:rerun-if-changed={}", self.model.display());
             println!("cargo:rerun-if-changed={}", self.map.display());

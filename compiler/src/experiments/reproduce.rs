@@ -707,12 +707,14 @@ pub fn load_data(data: &Path) -> Result<BTreeMap<String, Vec<TopoMap>>, Reproduc
 }
 
 /// Every setting `cfg` holds against its documented domain ([`crate::domain`]), before
-/// any work: the settings given per test building, the paper-style models' and the
-/// validation grid's training variants.
+/// any work: the rounds and maps per building, the settings given per test building,
+/// the paper-style models' and every candidate of the validation grid.
 pub fn check_settings(cfg: &ReproduceConfig) -> Result<(), ReproduceError> {
-    let bad = |what: &str, e: crate::domain::DomainError| {
-        ReproduceError::Config(format!("{what}: {e}"))
-    };
+    let bad =
+        |what: &str, e: crate::domain::DomainError| ReproduceError::Config(format!("{what}: {e}"));
+    crate::domain::rounds("rounds", cfg.rounds).map_err(|e| bad("protocol", e))?;
+    crate::domain::maps("maps_per_building", cfg.maps_per_building)
+        .map_err(|e| bad("protocol", e))?;
     if let Some(given) = &cfg.settings {
         for (b, s) in given {
             s.check()
@@ -726,11 +728,7 @@ pub fn check_settings(cfg: &ReproduceConfig) -> Result<(), ReproduceError> {
         .check()
         .map_err(|e| bad("paper-style MRF potentials", e))?;
     cfg.bp.check().map_err(|e| bad("paper-style MRF BP", e))?;
-    for (name, t) in &cfg.grid.graphspn_variants {
-        t.check()
-            .map_err(|e| bad(&format!("GraphSPN variant {name}"), e))?;
-    }
-    Ok(())
+    cfg.grid.check().map_err(|e| bad("validation grid", e))
 }
 
 /// Runs every experiment of `cfg` on the maps in `all`; returns the results

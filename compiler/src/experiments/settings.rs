@@ -7,9 +7,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::decompose::{
-    DecompositionParams, DecompositionStrategy, MAX_CANDIDATES, MAX_DECOMPOSITIONS,
-};
+use crate::decompose::{DecompositionParams, DecompositionStrategy, MAX_CANDIDATES};
 use crate::domain::{self, DomainError};
 use crate::learn::TrainingSettings;
 use crate::mrf::{BpOptions, CooccurrenceParams, Schedule};
@@ -35,9 +33,7 @@ pub struct MrfSetting {
 impl MrfSetting {
     /// Every numeric setting against its documented domain.
     pub fn check(&self) -> Result<(), DomainError> {
-        self.potentials
-            .check()
-            .map_err(|e| e.under("potentials"))?;
+        self.potentials.check().map_err(|e| e.under("potentials"))?;
         domain::left_open(
             "evidence_exponent",
             self.evidence_exponent,
@@ -104,7 +100,8 @@ impl MrfSetting {
 pub struct DecompositionChoice {
     /// How candidates are drawn and ranked.
     pub strategy: DecompositionStrategy,
-    /// Decompositions kept (the instance's D; 1 to [`MAX_DECOMPOSITIONS`]).
+    /// Decompositions kept (the instance's D; 1 to
+    /// [`MAX_DECOMPOSITIONS`](crate::decompose::MAX_DECOMPOSITIONS)).
     pub count: usize,
     /// Candidates drawn (`count` to [`MAX_CANDIDATES`]).
     pub candidates: usize,
@@ -124,7 +121,7 @@ impl Default for DecompositionChoice {
 impl DecompositionChoice {
     /// Every count against its documented domain.
     pub fn check(&self) -> Result<(), DomainError> {
-        domain::count("count", self.count as u64, 1, MAX_DECOMPOSITIONS as u64)?;
+        domain::decompositions("count", self.count)?;
         domain::count(
             "candidates",
             self.candidates as u64,

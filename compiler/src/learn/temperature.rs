@@ -84,3 +84,61 @@ impl Model {
         Ok(out)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn one_sum(weights: Vec<f64>) -> Spn {
+        Spn {
+            classes: vec![2],
+            nodes: vec![
+                Node::Leaf { var: 0, class: 0 },
+                Node::Leaf { var: 0, class: 1 },
+                Node::Sum {
+                    children: vec![0, 1],
+                    weights,
+                },
+            ],
+            root: 2,
+        }
+    }
+
+    fn weights(spn: &Spn) -> Vec<f64> {
+        match &spn.nodes[2] {
+            Node::Sum { weights, .. } => weights.clone(),
+            _ => unreachable!(),
+        }
+    }
+
+    /// Weights are relative: when every power underflows (1e-40^10) the temperature is
+    /// still applied, to the weights' ratios (it was skipped: recorded but not used).
+    #[test]
+    fn a_temperature_whose_powers_underflow_is_still_applied() {
+        let mut spn = one_sum(vec![1e-40, 3e-40]);
+        temper_spn(&mut spn, 10.0).unwrap();
+        let w = weights(&spn);
+        let expect = 3f64.powi(10);
+        assert!((w[1] / w[0] - expect).abs() < 1e-6 * expect, "{w:?}");
+        assert!((w[0] + w[1] - 1.0).abs() < 1e-12, "{w:?}");
+        let mut spn = one_sum(vec![1e-40, 3e-40]);
+        temper_spn(&mut spn, 2.0).unwrap();
+        let w = weights(&spn);
+        assert!(
+            (w[0] - 0.1).abs() < 1e-12 && (w[1] - 0.9).abs() < 1e-12,
+            "{w:?}"
+        );
+    }
+
+    /// A temperature beyond the domain is refused, not recorded and skipped.
+    #[test]
+    fn a_temperature_out_of_its_domain_is_refused() {
+        for bad in [0.0, -1.0, 10.5, 1e6, f64::INFINITY, f64::NAN] {
+            let mut spn = one_sum(vec![0.25, 0.75]);
+            let err = temper_spn(&mut spn, bad).unwrap_err();
+            assert!(err.to_string().contains("(0, 10]"), "{err}");
+            assert_eq!(weights(&spn), vec![0.25, 0.75]);
+        }
+        assert!(check_temperature(MAX_TEMPERATURE).is_ok());
+    }
+}

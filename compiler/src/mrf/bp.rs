@@ -97,13 +97,19 @@ impl BpOptions {
     /// command line and settings files call it).
     pub fn check(&self) -> Result<(), crate::domain::DomainError> {
         use crate::domain::{self, End};
-        domain::real("damping", self.damping, (0.0, End::Closed), (1.0, End::Open))?;
+        domain::real(
+            "damping",
+            self.damping,
+            (0.0, End::Closed),
+            (1.0, End::Open),
+        )?;
         domain::left_open("tolerance", self.tolerance, 0.0, 1.0)?;
         domain::count("max_iterations", self.max_iterations as u64, 1, 1_000_000)
     }
 
     fn validate(&self) -> Result<(), MrfError> {
-        self.check().map_err(|e| MrfError::BadOptions(e.to_string()))
+        self.check()
+            .map_err(|e| MrfError::BadOptions(e.to_string()))
     }
 }
 

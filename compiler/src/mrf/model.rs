@@ -60,9 +60,9 @@
 //! potential positive, so an unseen class pair is unlikely but never impossible.
 
 use super::MrfError;
-use crate::domain::{self, DomainError};
 use super::bp::{BpOptions, BpResult, loopy_bp};
 use super::factor_graph::FactorGraph;
+use crate::domain::{self, DomainError};
 use crate::map::{ClassId, TopoMap};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;

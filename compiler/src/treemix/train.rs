@@ -6,9 +6,9 @@ use serde::{Deserialize, Serialize};
 
 use super::TreeMixError;
 use super::fit::{FitGraph, FitOptions, fit_potentials};
-use super::model::{MAX_EVIDENCE_EXPONENT, MAX_TREES, TreeMixture};
-use crate::domain::{self, DomainError};
+use super::model::{MAX_EVIDENCE_EXPONENT, TreeMixture};
 use super::trees::SpanningTrees;
+use crate::domain::{self, DomainError};
 use crate::family::ModelFamily;
 use crate::learn::model::MODEL_FORMAT;
 use crate::map::ClassId;
@@ -30,7 +30,7 @@ pub struct TreeTraining {
     pub prior_exponent: f64,
     /// Evidence exponent `γ` (rows enter as `α^γ`; 1 to [`MAX_EVIDENCE_EXPONENT`]).
     pub evidence_exponent: u32,
-    /// Spanning trees per map (1 to [`MAX_TREES`]).
+    /// Spanning trees per map (1 to [`MAX_TREES`](super::MAX_TREES)).
     pub trees: usize,
     /// How the trees' marginals are combined.
     pub mixing: Mixing,
@@ -77,15 +77,14 @@ impl TreeTraining {
     /// command line and settings files call it). The potential form must be a
     /// symmetric one (`joint`, `normalised` or `pmi`): the model's `ψ` is symmetric.
     pub fn check(&self) -> Result<(), DomainError> {
-        self.potentials
-            .check()
-            .map_err(|e| e.under("potentials"))?;
+        self.potentials.check().map_err(|e| e.under("potentials"))?;
         if self.potentials.normalisation == Normalisation::Conditional {
             return Err(DomainError {
                 setting: "potentials.normalisation".into(),
                 value: "conditional".into(),
-                domain: "must be joint, normalised or pmi (a tree mixture's potential is symmetric)"
-                    .into(),
+                domain:
+                    "must be joint, normalised or pmi (a tree mixture's potential is symmetric)"
+                        .into(),
             });
         }
         domain::closed("prior_exponent", self.prior_exponent, -2.0, 2.0)?;
@@ -95,7 +94,7 @@ impl TreeTraining {
             1,
             u64::from(MAX_EVIDENCE_EXPONENT),
         )?;
-        domain::count("trees", self.trees as u64, 1, MAX_TREES as u64)?;
+        domain::trees("trees", self.trees)?;
         if let Some(fit) = &self.fit {
             domain::left_open("fit.penalty", fit.penalty, 0.0, 1e6)?;
             domain::count("fit.rounds", fit.rounds as u64, 1, 100)?;
