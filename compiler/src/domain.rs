@@ -163,4 +163,17 @@ mod tests {
         assert!(trees("trees", 64).is_ok() && trees("trees", 0).is_err());
         assert!(rounds("rounds", 0).is_err() && maps("maps", 0).is_err());
     }
+
+    /// The shipped configurations (the full and quick runs, their validation grids and
+    /// the tiny grid) are within every domain: the checks refuse nothing they use.
+    #[cfg(feature = "host")]
+    #[test]
+    fn the_shipped_configurations_are_within_their_domains() {
+        use crate::experiments::reproduce::{ReproduceConfig, check_settings};
+        use crate::experiments::validate::ValidationGrid;
+        for cfg in [ReproduceConfig::full(0), ReproduceConfig::quick(0)] {
+            check_settings(&cfg).unwrap();
+        }
+        ValidationGrid::tiny().check().unwrap();
+    }
 }
