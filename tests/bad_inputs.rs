@@ -3049,3 +3049,46 @@ fn every_subcommand_help_has_an_example() {
         "{help}"
     );
 }
+
+/// A setting out of its domain in a settings file is named with the file's line, the
+/// setting's path, the value and the domain (issue 23 §3: what and where).
+#[test]
+fn a_settings_file_value_out_of_its_domain_is_named_with_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = serde_json::to_value(ModelSettings {
+        graphspn: GraphSpnSetting::paper(),
+        mrf2: MrfSetting::paper(BpOptions::default()),
+        mrf3: MrfSetting::paper(BpOptions::default()),
+        trees: TreeTraining::default(),
+    })
+    .unwrap();
+    // The same key under another model before it: the line is the one of mrf3's.
+    s["mrf3"]["evidence_exponent"] = json!(-3.5);
+    let path = dir.path().join("validation.json");
+    write_json(
+        &path,
+        &json!({"settings": {"Freiburg": s.clone(), "Stockholm": s}}),
+    );
+    let text = std::fs::read_to_string(&path).unwrap();
+    let line = text
+        .lines()
+        .position(|l| l.contains("\"evidence_exponent\": -3.5"))
+        .unwrap()
+        + 1;
+    let out = bin()
+        .args(["reproduce", "--out"])
+        .arg(dir.path().join("r"))
+        .arg("--settings")
+        .arg(&path)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(&format!(
+            "validation.json:{line}: settings of Freiburg: mrf3.evidence_exponent = -3.5: must be finite and in (0, 16]"
+        )),
+        "line {line}: {err}"
+    );
+    assert!(!dir.path().join("r").exists());
+}

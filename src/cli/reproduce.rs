@@ -234,10 +234,36 @@ pub fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSet
         )
     })?;
     for (building, s) in &file.settings {
-        s.check()
-            .map_err(|e| anyhow::anyhow!("{at}: settings of {building}: {e}"))?;
+        s.check().map_err(|e| {
+            let path: Vec<&str> = ["settings", building.as_str()]
+                .into_iter()
+                .chain(e.setting.split('.'))
+                .collect();
+            let line = key_line(&text, &path).map_or(String::new(), |l| format!(":{l}"));
+            anyhow::anyhow!("{at}{line}: settings of {building}: {e}")
+        })?;
     }
     Ok(file.settings)
+}
+
+/// The line of the value at `path` (object keys, outermost first) in the JSON `text`,
+/// found by looking for each key after the previous one (each nested object follows
+/// its key); `None` if a key is not there (a value taken by default).
+fn key_line(text: &str, path: &[&str]) -> Option<usize> {
+    let mut at = 0;
+    for key in path {
+        let quoted = serde_json::to_string(key).ok()?;
+        let mut from = at;
+        at = loop {
+            let i = from + text[from..].find(&quoted)?;
+            let after = text[i + quoted.len()..].trim_start();
+            if after.starts_with(':') {
+                break i + quoted.len();
+            }
+            from = i + quoted.len();
+        };
+    }
+    Some(text[..at].matches('\n').count() + 1)
 }
 
 /// Runs `graphspn reproduce`.
