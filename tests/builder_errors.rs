@@ -75,8 +75,36 @@ fn run_writes_only_when_changed() {
     std::thread::sleep(std::time::Duration::from_millis(20));
     b.clone().run().unwrap();
     assert_eq!(std::fs::metadata(&out).unwrap().modified().unwrap(), first);
-    let bad = b.module_name("not an ident").run().unwrap_err();
+    let bad = b.clone().module_name("not an ident").run().unwrap_err();
     assert!(matches!(bad, BuildError::BadOption(_)), "{bad}");
+}
+
+/// A module name that is an identifier but a keyword (`fn`, `gen` reserved in edition
+/// 2024, `Self`) or `_` would produce `pub mod fn { .. }`, which does not compile: refused
+/// by name, before the inputs are read, with an exact output file too (issue 23 §3).
+#[test]
+fn a_keyword_is_not_a_module_name() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["fn", "gen", "Self", "_", "type", "async"] {
+        let b = Builder::new(demo().join("model.json"), dir.path().join("missing.json"))
+            .count(2)
+            .module_name(name)
+            .out_dir(dir.path())
+            .cargo_metadata(false);
+        let err = b.clone().run().unwrap_err();
+        assert!(matches!(err, BuildError::BadOption(_)), "{name}: {err}");
+        assert!(err.to_string().contains(&format!("{name:?}")), "{err}");
+        let err = b
+            .out_file(dir.path().join("x.rs"))
+            .output_path()
+            .unwrap_err();
+        assert!(matches!(err, BuildError::BadOption(_)), "{name}: {err}");
+    }
+    for name in ["floor", "r#fn_map", "_floor", "fn_map"] {
+        let ok = graphspn::codegen::check_module_name(name);
+        assert_eq!(ok.is_ok(), name != "r#fn_map", "{name}: {ok:?}");
+    }
+    assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none());
 }
 
 #[test]

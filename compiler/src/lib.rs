@@ -5,6 +5,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`spn`] | sum-product networks: representation, validation, JSON format |
+//! | [`domain`] | the domains of numeric settings, and the one check per settings type |
 //! | [`interpreter`] | the exact reference evaluator: log-likelihood, marginals, MPE |
 //! | [`map`] | topological maps, the COLD and JSON loaders, the synthetic office-floor generator |
 //! | [`template`] | sub-graph templates (Singleton, Pair, Three, Star, user-defined) and matching |
@@ -31,6 +32,7 @@
 #[cfg(feature = "codegen")]
 pub mod codegen;
 pub mod decompose;
+pub mod domain;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod experiments;

@@ -339,3 +339,27 @@ fn json_errors() {
     let s = TopoMap::load(&p).unwrap_err().to_string();
     assert!(s.contains("bad.json") && s.contains("line 1"), "{s}");
 }
+
+/// A folder of maps holding a sub-folder that is not a COLD sequence (no `nodes.dat`):
+/// an error naming that sub-folder (it was skipped without a word); files that are not
+/// maps are returned for a warning; hidden entries are skipped (issue 23 §3).
+#[test]
+fn a_folder_among_the_maps_without_nodes_dat_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let floor =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../generated/demo/floor.json");
+    std::fs::copy(&floor, dir.path().join("a.json")).unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "not a map").unwrap();
+    std::fs::create_dir(dir.path().join(".cache")).unwrap();
+    let (maps, not_read) = graphspn_compiler::map::load_map_set_report(dir.path()).unwrap();
+    assert_eq!(maps.len(), 1);
+    assert_eq!(not_read, vec![dir.path().join("notes.txt")]);
+    std::fs::create_dir(dir.path().join("b_sequence")).unwrap();
+    let err = graphspn_compiler::map::load_map_set(dir.path()).unwrap_err();
+    assert!(matches!(err, MapError::NotASequence { .. }), "{err}");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("b_sequence") && msg.contains("nodes.dat"),
+        "{msg}"
+    );
+}

@@ -306,7 +306,10 @@ fn the_model_file_round_trips_and_every_bad_field_is_named() {
         &|v| v["evidence_exponent"] = serde_json::json!(0),
         "evidence_exponent",
     );
-    bad(&|v| v["trees"] = serde_json::json!(0), "trees must be");
+    bad(
+        &|v| v["trees"] = serde_json::json!(0),
+        "trees = 0: must be from 1 to 64",
+    );
     bad(
         &|v| v["family"] = serde_json::json!("forest"),
         "unknown model family",

@@ -4,12 +4,14 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use graphspn_compiler::decompose::{Decomposition, DecompositionStrategy};
+use graphspn_compiler::domain::{self, DomainError};
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::instance::Instance;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::cold::Dropped;
 use graphspn_compiler::map::{TopoMap, cold};
 
+use super::budget::{MEMORY_LIMIT, gb};
 use super::output::Outputs;
 
 /// The COLD data folder: `--data`, else `$GRAPHSPN_DATA`, else the copy shipped in the
@@ -100,10 +102,21 @@ pub fn declare_map(path: &Path, data: PathBuf, outputs: &mut Outputs) -> Result<
 /// from [`declare_map`]). Warns on standard error when a COLD map loses places to
 /// disconnection (the loader keeps the largest connected component).
 pub fn read_map(resolved: &Path) -> Result<LoadedMap> {
+    read_map_limited(resolved, usize::MAX)
+}
+
+/// [`read_map`] of a map of at most `max_places` places: a larger one is refused
+/// while it is read ([`graphspn_compiler::map::MapError::TooManyPlaces`], with its
+/// count), before its graph is built. [`super::budget::read_map_within`] turns that
+/// into the message of the work that does not fit.
+pub fn read_map_limited(resolved: &Path, max_places: usize) -> Result<LoadedMap> {
     let (map, dropped) = if resolved.is_dir() {
-        cold::load_sequence_report(resolved)?
+        cold::load_sequence_limited(resolved, max_places)?
     } else {
-        (TopoMap::load(resolved)?, Dropped::default())
+        (
+            TopoMap::load_limited(resolved, max_places)?,
+            Dropped::default(),
+        )
     };
     if !dropped.disconnected.is_empty() {
         let total = map.num_places() + dropped.disconnected.len();
@@ -142,17 +155,50 @@ pub fn load_any_model(path: &Path) -> Result<AnyModel> {
     Ok(AnyModel::load(path)?)
 }
 
-/// Checks a number of decompositions given with `flag` before any work.
+/// Checks a number of decompositions given with `flag` before any work, against its
+/// domain ([`graphspn_compiler::domain::decompositions`]).
 pub fn check_decomposition_count(flag: &str, count: usize) -> Result<()> {
+    domain::decompositions("count", count).map_err(|e| {
+        anyhow::anyhow!(
+            "{flag} {}: {} (each decomposition adds a copy of the map's template networks)",
+            e.value,
+            e.domain
+        )
+    })
+}
+
+/// A flag's value checked by a [`graphspn_compiler::domain`] function, as the flag's
+/// error: `--flag value: must be …`.
+pub fn flag_domain(flag: &str, checked: Result<(), DomainError>) -> Result<()> {
+    checked.map_err(|e| anyhow::anyhow!("{flag} {}: {}", e.value, e.domain))
+}
+
+/// How many decompositions the decompositions file `path` (given with `flag`) holds,
+/// counted as it is read without keeping them; refused when none or more than
+/// [`MAX_DECOMPOSITIONS`].
+pub fn count_decompositions_file(flag: &str, path: &Path) -> Result<usize> {
+    let count = graphspn_compiler::decompose::file::count(path)
+        .with_context(|| format!("{flag} {}", path.display()))?;
     if count == 0 {
-        bail!("{flag} 0: the instance needs at least one decomposition");
+        bail!("{flag} {}: holds no decompositions", path.display());
     }
     if count > MAX_DECOMPOSITIONS {
         bail!(
-            "{flag} {count}: at most {MAX_DECOMPOSITIONS} (each decomposition adds a copy of the map's template networks)"
+            "{flag} {}: holds {count} decompositions, at most {MAX_DECOMPOSITIONS} are accepted",
+            path.display()
         );
     }
-    Ok(())
+    Ok(count)
+}
+
+/// A setting outside its domain ([`graphspn_compiler::domain`]) as the error of the
+/// flag that gave it: `flags` maps setting paths to flags; a setting without a flag
+/// keeps its path.
+pub fn flag_error(e: DomainError, flags: &[(&str, &str)]) -> anyhow::Error {
+    match flags.iter().find(|(setting, _)| *setting == e.setting) {
+        Some((_, flag)) => anyhow::anyhow!("{flag} {}: {}", e.value, e.domain),
+        None => anyhow::anyhow!("{e}"),
+    }
 }
 
 /// Parses `--strategy` (`paper` or `cover`).
@@ -162,7 +208,7 @@ pub fn parse_strategy(s: &str) -> Result<DecompositionStrategy, String> {
 }
 
 /// Largest `--decompositions` accepted by `infer`, `instance`, `compile` and `decompose`.
-pub const MAX_DECOMPOSITIONS: usize = 1000;
+pub const MAX_DECOMPOSITIONS: usize = graphspn_compiler::decompose::MAX_DECOMPOSITIONS;
 
 /// Decompositions for `map`: read from `file` (a decompositions file, checked against
 /// the map and the model's templates) or made by the seeded decomposer.
@@ -185,7 +231,7 @@ pub fn decompositions_for(
         None => {
             let dp = graphspn_compiler::decompose::DecompositionParams {
                 count,
-                candidates: (3 * count).max(15),
+                candidates: super::budget::candidates(count),
                 seed,
                 strategy,
             };
@@ -197,14 +243,6 @@ pub fn decompositions_for(
     }
 }
 
-/// Largest memory (bytes) a host command may plan to use before it refuses with an
-/// estimate: 4 GiB.
-pub const MEMORY_LIMIT: u128 = 4 << 30;
-
-fn gb(bytes: u128) -> String {
-    format!("{:.1} GB", bytes as f64 / 1e9)
-}
-
 /// Builds the explicit instance GraphSPN of `map` from `decompositions`; refuses,
 /// before building, one estimated above [`MEMORY_LIMIT`] (the SPN and its text).
 pub fn instance_of(
@@ -212,6 +250,7 @@ pub fn instance_of(
     map: &TopoMap,
     decompositions: Vec<Decomposition>,
 ) -> Result<Instance> {
+    // The SPN and its text.
     let estimate =
         2 * graphspn_compiler::instance::estimated_explicit_bytes(model, &decompositions);
     if estimate > MEMORY_LIMIT {
@@ -226,27 +265,6 @@ pub fn instance_of(
     }
     Instance::build(model, map, decompositions)
         .with_context(|| format!("building the instance of map {:?}", map.name))
-}
-
-/// Refuses `--decompositions` values whose component evaluator (and decomposition
-/// step) is estimated above [`MEMORY_LIMIT`].
-pub fn check_component_memory(model: &Model, map: &TopoMap, decompositions: usize) -> Result<()> {
-    let estimate = graphspn_compiler::instance::estimated_component_bytes(
-        map.num_places(),
-        model.classes.len(),
-        decompositions,
-        (3 * decompositions).max(15),
-    );
-    if estimate > MEMORY_LIMIT {
-        bail!(
-            "--decompositions {decompositions} on map {:?} ({} places) would take about {} (limit {}): lower --decompositions",
-            map.name,
-            map.num_places(),
-            gb(estimate),
-            gb(MEMORY_LIMIT)
-        );
-    }
-    Ok(())
 }
 
 /// The component-wise evaluator of `map`'s instance mixing `decompositions` (no

@@ -9,12 +9,18 @@ use clap::Args;
 use graphspn_compiler::codegen::{
     AnyInputs, Builder, CodeReport, Precision, Vectorisation, check_module_name, is_generated_file,
 };
+use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
-use graphspn_compiler::treemix::model::MAX_TREES;
 
+use super::budget::{Budget, Work, read_map_within};
 use super::common::{
-    check_decomposition_count, declare_map, decompositions_for, parse_strategy, read_map,
+    check_decomposition_count, count_decompositions_file, declare_map, decompositions_for,
+    flag_domain, load_any_model, parse_strategy,
 };
+
+/// Largest map `compile` takes: the generator's limit (its tables index places with
+/// `u16`), checked here while the map is read, before any work.
+const MAX_COMPILED_PLACES: usize = u16::MAX as usize;
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
 
@@ -113,11 +119,51 @@ pub fn run(args: CompileArgs) -> Result<()> {
     outputs.file_replacing("--out", &args.out, generated)?;
     // The inputs are read and checked here, as by every other command (errors name the
     // flag, file, line, template and node), before the builder reads them again.
-    if !args.model.is_file() {
-        bail!("--model {}: no such file", args.model.display());
+    let model = load_any_model(&args.model)?;
+    // What will be built, its counts checked and its size estimated before the map is
+    // read: a map too large for it is refused while it is read.
+    let budget = match &model {
+        AnyModel::Graphspn(_) => match &args.decompositions {
+            Some(f) => {
+                let count = count_decompositions_file("--decompositions", f)?;
+                Budget::new(
+                    format!("--decompositions {} ({count} decompositions)", f.display()),
+                    Work::Decompositions {
+                        count,
+                        candidates: 0,
+                    },
+                )
+            }
+            None => {
+                let count = args.count.unwrap_or(5);
+                check_decomposition_count("--count", count)?;
+                Budget::new(format!("--count {count}"), Work::decompositions(count))
+            }
+        },
+        AnyModel::TreeMixture(t) => {
+            if args.decompositions.is_some() || args.strategy.is_some() {
+                bail!(
+                    "--model {} is a tree mixture: it is mixed over spanning trees (--seed, --count), not decompositions (--decompositions, --strategy)",
+                    args.model.display()
+                );
+            }
+            let trees = args.count.unwrap_or(t.trees);
+            // A tree mixture's --count is its number of spanning trees.
+            flag_domain("--count", domain::trees("trees", trees))?;
+            Budget::new(
+                format!("--count {trees}"),
+                Work::Trees {
+                    trees,
+                    classes: t.classes.len(),
+                },
+            )
+        }
     }
-    let model = AnyModel::load(&args.model)?;
-    let map = read_map(&map_path)?.map;
+    .place_limit(
+        MAX_COMPILED_PLACES,
+        "at most 65535 places can be compiled (the generated code indexes places with 16 bits)",
+    );
+    let map = read_map_within("--map", &map_path, &budget)?.map;
     let mut b = Builder::new(&args.model, &args.map)
         .module_name(&args.module)
         .out_file(&args.out)
@@ -138,8 +184,6 @@ pub fn run(args: CompileArgs) -> Result<()> {
     }
     b = match &model {
         AnyModel::Graphspn(model) => {
-            let count = args.count.unwrap_or(5);
-            check_decomposition_count("--count", count)?;
             let strategy = args.strategy.unwrap_or(DecompositionStrategy::Paper);
             match &args.decompositions {
                 Some(f) => b.decompositions(decompositions_for(
@@ -150,20 +194,14 @@ pub fn run(args: CompileArgs) -> Result<()> {
                     0,
                     DecompositionStrategy::Paper,
                 )?),
-                None => b.seed(args.seed).count(count).strategy(strategy),
+                None => b
+                    .seed(args.seed)
+                    .count(args.count.unwrap_or(5))
+                    .strategy(strategy),
             }
         }
         AnyModel::TreeMixture(_) => {
-            if args.decompositions.is_some() || args.strategy.is_some() {
-                bail!(
-                    "--model {} is a tree mixture: it is mixed over spanning trees (--seed, --count), not decompositions (--decompositions, --strategy)",
-                    args.model.display()
-                );
-            }
             if let Some(count) = args.count {
-                if !(1..=MAX_TREES).contains(&count) {
-                    bail!("--count {count}: a tree mixture takes 1 to {MAX_TREES} trees");
-                }
                 b = b.count(count);
             }
             b.seed(args.seed)

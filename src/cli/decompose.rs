@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
+use super::budget::{Budget, Work, read_map_within};
 use super::common::{
     check_decomposition_count, data_dir, declare_map, decompositions_for, load_model,
-    parse_strategy, read_map,
+    parse_strategy,
 };
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
@@ -57,7 +58,11 @@ pub fn run(args: DecomposeArgs) -> Result<()> {
     let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     outputs.file("--out", &args.out)?;
     let model = load_model(&args.model)?;
-    let loaded = read_map(&map_path)?;
+    let budget = Budget::new(
+        format!("--count {}", args.count),
+        Work::decompositions(args.count),
+    );
+    let loaded = read_map_within("--map", &map_path, &budget)?;
     let decs = decompositions_for(
         &model,
         &loaded.map,

@@ -9,9 +9,9 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::experiments::report::write_outputs;
 use graphspn_compiler::experiments::reproduce::run;
-use graphspn_compiler::map::{TopoMap, cold, load_map_set, map_set_name};
+use graphspn_compiler::map::{TopoMap, cold, load_map_set_report, map_set_name};
 
-use super::common::require_data_dir;
+use super::common::{flag_domain, require_data_dir};
 use super::output::{Outputs, write_folder};
 use super::reproduce::{ProtocolOptions, RunOptions, read_settings};
 
@@ -70,7 +70,24 @@ fn load_sets(flag: &str, paths: &[PathBuf]) -> Result<Vec<(String, Vec<TopoMap>)
                 p.display()
             );
         }
-        let maps = load_map_set(p).with_context(|| format!("{flag} {}", p.display()))?;
+        // A sub-folder that is not a COLD sequence is an error naming it (it was
+        // skipped without a word); files that are not maps are named in a warning.
+        let (maps, not_read) =
+            load_map_set_report(p).with_context(|| format!("{flag} {}", p.display()))?;
+        if !not_read.is_empty() {
+            let names: Vec<String> = not_read
+                .iter()
+                .take(10)
+                .map(|f| f.display().to_string())
+                .collect();
+            eprintln!(
+                "warning: {flag} {}: {} file(s) not read (only *.json maps and COLD sequence folders are): {}{}",
+                p.display(),
+                not_read.len(),
+                names.join(", "),
+                if not_read.len() > 10 { ", …" } else { "" }
+            );
+        }
         out.push((name, maps));
     }
     Ok(out)
@@ -113,16 +130,17 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
     let mut cfg = args.run.config(false);
     args.protocol.apply(&mut cfg)?;
     if let Some(m) = args.max_maps {
-        if m == 0 {
-            bail!("--max-maps 0: test at least one map per building");
-        }
+        flag_domain(
+            "--max-maps",
+            graphspn_compiler::domain::maps("maps_per_building", m),
+        )?;
         cfg.maps_per_building = m;
     }
 
     let chosen = match &args.settings {
         Some(p) => {
             outputs.input("--settings", p);
-            let all = read_settings(p).with_context(|| format!("--settings {}", p.display()))?;
+            let all = read_settings(p)?;
             let key = match (&args.settings_of, all.len()) {
                 (Some(k), _) => k.clone(),
                 (None, 1) => all.keys().next().cloned().unwrap_or_default(),

@@ -8,36 +8,32 @@
 //! ln P(evidence of the listed places). `docs/FORMATS.md` describes the file.
 
 use std::collections::BTreeMap;
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use graphspn_compiler::map::TopoMap;
-use graphspn_compiler::map::cold::Dropped;
 use graphspn_compiler::render::{RenderOptions, render_svg};
-use serde::Deserialize;
-use serde::de::{MapAccess, Visitor};
+use serde::Serialize;
 use serde_json::json;
 
+use super::budget::{Budget, Work, candidates, read_map_within};
 use super::common::{
-    check_component_memory, check_decomposition_count, component_instance_of, data_dir,
-    declare_map, decompositions_for, load_any_model, parse_strategy, read_map,
+    check_decomposition_count, component_instance_of, count_decompositions_file, data_dir,
+    declare_map, decompositions_for, flag_domain, load_any_model, parse_strategy,
 };
+use super::evidence::read_evidence;
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
+use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::interpreter::{Marginals, Mpe};
 use graphspn_compiler::spn::Mixing;
-use graphspn_compiler::treemix::{MAX_TREES, TreeInstance};
+use graphspn_compiler::treemix::TreeInstance;
 
 /// Parses `--mixing` (`posterior` or `average`).
 fn parse_mixing(s: &str) -> Result<Mixing, String> {
     Mixing::from_name(s).ok_or_else(|| format!("unknown mixing {s:?}: give posterior or average"))
 }
-
-/// Version of the evidence file format.
-pub const EVIDENCE_FORMAT: u32 = 1;
 
 /// Arguments of `graphspn infer`.
 #[derive(Args)]
@@ -105,124 +101,34 @@ pub struct InferArgs {
     force: bool,
 }
 
-/// The evidence rows in file order, duplicates kept (serde's maps keep the last).
-struct Rows(Vec<(String, Vec<f64>)>);
-
-impl<'de> Deserialize<'de> for Rows {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl<'de> Visitor<'de> for V {
-            type Value = Rows;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("an object from place ids to likelihood lists")
-            }
-            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<Rows, A::Error> {
-                let mut rows = Vec::new();
-                while let Some(e) = m.next_entry::<String, Vec<f64>>()? {
-                    rows.push(e);
-                }
-                Ok(Rows(rows))
-            }
-        }
-        d.deserialize_map(V)
-    }
+/// One place of `infer`'s result.
+#[derive(Serialize)]
+struct PlaceOut<'a> {
+    argmax: &'a str,
+    id: u32,
+    probs: &'a [f64],
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct EvidenceFile {
+/// The MPE labelling in `infer`'s result.
+#[derive(Serialize)]
+struct MpeOut<'a> {
+    labels: BTreeMap<String, &'a str>,
+    log_max_product: f64,
+    log_probability: f64,
+}
+
+/// `infer`'s result (`docs/FORMATS.md`).
+#[derive(Serialize)]
+struct InferOut<'a> {
+    classes: &'a [String],
     format: u32,
-    evidence: Rows,
-}
-
-/// Lines (1-based) of every occurrence of `"key"` followed by `:` in `text`.
-fn lines_of_key(text: &str, key: &str) -> Vec<usize> {
-    let quoted = format!("\"{key}\"");
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| {
-            l.match_indices(&quoted)
-                .any(|(i, _)| l[i + quoted.len()..].trim_start().starts_with(':'))
-        })
-        .map(|(i, _)| i + 1)
-        .collect()
-}
-
-/// Parses an evidence file for `map`: one row per place (place order), all ones (no
-/// evidence) where none is given. Errors name the file, the line and the place id;
-/// a place listed twice is an error; a place the COLD loader dropped is explained.
-pub fn parse_evidence(
-    text: &str,
-    file: &Path,
-    map: &TopoMap,
-    dropped: &Dropped,
-) -> Result<Vec<Vec<f64>>> {
-    let f: EvidenceFile = serde_json::from_str(text).map_err(|e| {
-        anyhow::anyhow!(
-            "--evidence {}:{}:{}: not a valid evidence file: {e}",
-            file.display(),
-            e.line(),
-            e.column()
-        )
-    })?;
-    if f.format != EVIDENCE_FORMAT {
-        bail!(
-            "--evidence {}: evidence format {} (this tool reads format {EVIDENCE_FORMAT})",
-            file.display(),
-            f.format
-        );
-    }
-    let c = map.classes.len();
-    let mut rows = vec![vec![1.0; c]; map.num_places()];
-    let mut seen: BTreeMap<u32, usize> = BTreeMap::new();
-    let mut occurrence: BTreeMap<&str, usize> = BTreeMap::new();
-    for (k, (key, row)) in f.evidence.0.iter().enumerate() {
-        let nth = occurrence.entry(key.as_str()).or_insert(0);
-        let line = lines_of_key(text, key).get(*nth).copied();
-        *nth += 1;
-        let at = match line {
-            Some(l) => format!("--evidence {}:{l}", file.display()),
-            None => format!("--evidence {}", file.display()),
-        };
-        let id: u32 = key
-            .parse()
-            .with_context(|| format!("{at}: {key:?} is not a place id"))?;
-        if let Some(&first) = seen.get(&id) {
-            bail!(
-                "{at}: place id {id} is listed twice (first as {:?}); give each place one row",
-                f.evidence.0[first].0
-            );
-        }
-        seen.insert(id, k);
-        let Some(i) = map.index_of_id(id) else {
-            match dropped.reason(id) {
-                Some(why) => bail!(
-                    "{at}: place id {id} was dropped when loading map {:?}: {why}",
-                    map.name
-                ),
-                None => bail!("{at}: place id {id} is not in map {:?}", map.name),
-            }
-        };
-        if row.len() != c {
-            bail!(
-                "{at}: place id {id} has {} likelihoods, the map has {c} classes ({})",
-                row.len(),
-                map.classes.names().join(", ")
-            );
-        }
-        if let Some(k) = row.iter().position(|a| !a.is_finite() || *a < 0.0) {
-            bail!(
-                "{at}: place id {id}: likelihood of class {} is {} (must be finite and >= 0)",
-                map.classes.name(k as u16),
-                row[k]
-            );
-        }
-        if row.iter().all(|&a| a == 0.0) {
-            bail!("{at}: place id {id}: every likelihood is 0");
-        }
-        rows[i] = row.clone();
-    }
-    Ok(rows)
+    log_likelihood: f64,
+    map: &'a str,
+    model: serde_json::Value,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mpe: Option<MpeOut<'a>>,
+    places: Vec<PlaceOut<'a>>,
+    seed: u64,
 }
 
 /// Runs `graphspn infer`.
@@ -247,23 +153,69 @@ pub fn run(args: InferArgs) -> Result<()> {
         outputs.file("--svg", p)?;
     }
     let model = load_any_model(&args.model)?;
-    let loaded = read_map(&map_path)?;
-    let map = &loaded.map;
-    let rows = match &args.evidence {
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("--evidence {}", p.display()))?;
-            parse_evidence(&text, p, map, &loaded.dropped)?
-        }
-        None => vec![vec![1.0; map.classes.len()]; map.num_places()],
-    };
-    let (m, mpe, mixture) = match &model {
+    // The family's flags, and what will be built, before the map is read.
+    let budget = match &model {
         AnyModel::Graphspn(model) => {
             if args.trees.is_some() {
                 bail!("--trees applies to tree-mixture models; --model holds a GraphSPN");
             }
+            let classes = model.classes.len();
+            match &args.decompositions_file {
+                Some(f) => {
+                    let count = count_decompositions_file("--decompositions-file", f)?;
+                    let work = Work::Components {
+                        count,
+                        candidates: 0,
+                        classes,
+                    };
+                    Budget::new(
+                        format!(
+                            "--decompositions-file {} ({count} decompositions)",
+                            f.display()
+                        ),
+                        work,
+                    )
+                }
+                None => {
+                    let count = args.decompositions.unwrap_or(5);
+                    let work = Work::Components {
+                        count,
+                        candidates: candidates(count),
+                        classes,
+                    };
+                    Budget::new(format!("--decompositions {count}"), work)
+                }
+            }
+        }
+        AnyModel::TreeMixture(model) => {
+            let gspn_only = [
+                ("--decompositions", args.decompositions.is_some()),
+                ("--decompositions-file", args.decompositions_file.is_some()),
+                ("--strategy", args.strategy.is_some()),
+            ];
+            if let Some((flag, _)) = gspn_only.iter().find(|f| f.1) {
+                bail!("{flag} applies to GraphSPN models; --model holds a tree mixture");
+            }
+            if let Some(t) = args.trees {
+                flag_domain("--trees", domain::trees("trees", t))?;
+            }
+            let trees = args.trees.unwrap_or(model.trees);
+            let work = Work::Trees {
+                trees,
+                classes: model.classes.len(),
+            };
+            Budget::new(format!("--trees {trees}"), work)
+        }
+    };
+    let loaded = read_map_within("--map", &map_path, &budget)?;
+    let map = &loaded.map;
+    let rows = match &args.evidence {
+        Some(p) => read_evidence(p, map, &loaded.dropped)?,
+        None => vec![vec![1.0; map.classes.len()]; map.num_places()],
+    };
+    let (m, mpe, mixture) = match &model {
+        AnyModel::Graphspn(model) => {
             let count = args.decompositions.unwrap_or(5);
-            check_component_memory(model, map, count)?;
             let decs = decompositions_for(
                 model,
                 map,
@@ -290,19 +242,8 @@ pub fn run(args: InferArgs) -> Result<()> {
             )
         }
         AnyModel::TreeMixture(model) => {
-            let gspn_only = [
-                ("--decompositions", args.decompositions.is_some()),
-                ("--decompositions-file", args.decompositions_file.is_some()),
-                ("--strategy", args.strategy.is_some()),
-            ];
-            if let Some((flag, _)) = gspn_only.iter().find(|f| f.1) {
-                bail!("{flag} applies to GraphSPN models; --model holds a tree mixture");
-            }
             let mut model = model.clone();
             if let Some(t) = args.trees {
-                if !(1..=MAX_TREES).contains(&t) {
-                    bail!("--trees {t}: give 1 to {MAX_TREES} trees");
-                }
                 model.trees = t;
             }
             let mixing = args.mixing.unwrap_or(model.mixing);
@@ -343,32 +284,36 @@ pub fn run(args: InferArgs) -> Result<()> {
         }
         best
     };
-    let places: Vec<_> = map
+    // Written from borrowed data (a `serde_json::Value` of every place took 190 MB at
+    // 100,000 places); fields in alphabetical order, as a JSON object prints them.
+    let places: Vec<PlaceOut> = map
         .places()
         .zip(&m.probs)
-        .map(|(p, row)| json!({"id": p.id, "argmax": names[argmax(row)], "probs": row}))
+        .map(|(p, row)| PlaceOut {
+            argmax: &names[argmax(row)],
+            id: p.id,
+            probs: row,
+        })
         .collect();
-    let mut doc = json!({
-        "format": 1,
-        "map": map.name,
-        "classes": names,
-        "model": mixture,
-        "seed": args.seed,
-        "log_likelihood": m.log_likelihood,
-        "places": places,
-    });
-    if let Some(mpe) = mpe {
-        let labels: BTreeMap<String, &str> = map
+    let mpe = mpe.map(|mpe| MpeOut {
+        labels: map
             .places()
             .zip(&mpe.assignment)
             .map(|(p, &k)| (p.id.to_string(), names[k as usize].as_str()))
-            .collect();
-        doc["mpe"] = json!({
-            "labels": labels,
-            "log_max_product": mpe.log_max_product,
-            "log_probability": mpe.log_probability,
-        });
-    }
+            .collect(),
+        log_max_product: mpe.log_max_product,
+        log_probability: mpe.log_probability,
+    });
+    let doc = InferOut {
+        classes: names,
+        format: 1,
+        log_likelihood: m.log_likelihood,
+        map: &map.name,
+        model: mixture,
+        mpe,
+        places,
+        seed: args.seed,
+    };
     let text = serde_json::to_string_pretty(&doc)? + "\n";
     let svg = args.svg.as_ref().map(|_| {
         let opts = RenderOptions {

@@ -6,9 +6,10 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 
+use super::budget::{Budget, Work, read_map_within};
 use super::common::{
-    check_decomposition_count, data_dir, declare_map, decompositions_for, instance_of,
-    load_any_model, parse_strategy, read_map,
+    check_decomposition_count, count_decompositions_file, data_dir, declare_map,
+    decompositions_for, instance_of, load_any_model, parse_strategy,
 };
 use super::output::{Outputs, emit};
 use anyhow::bail;
@@ -90,7 +91,17 @@ pub fn run(args: InstanceArgs) -> Result<()> {
                     "--decompositions-file applies to GraphSPN models; --model holds a tree mixture"
                 );
             }
-            let loaded = read_map(&map_path)?;
+            let budget = Budget::new(
+                format!("the explicit SPN of {} trees", t.trees),
+                Work::TreeSpn {
+                    trees: t.trees,
+                    classes: t.classes.len(),
+                },
+            )
+            .advice(
+                "use a smaller map (`graphspn infer` answers queries without the explicit SPN)",
+            );
+            let loaded = read_map_within("--map", &map_path, &budget)?;
             let map = &loaded.map;
             let inst = TreeInstance::with_covering_trees(&t, map, args.seed)?;
             let spn = instance_spn(&inst)?;
@@ -112,7 +123,28 @@ pub fn run(args: InstanceArgs) -> Result<()> {
             return Ok(());
         }
     };
-    let loaded = read_map(&map_path)?;
+    // The decompositions step; the explicit SPN of the decompositions made is
+    // estimated exactly before it is built ([`instance_of`]).
+    let budget = match &args.decompositions_file {
+        Some(f) => {
+            let count = count_decompositions_file("--decompositions-file", f)?;
+            Budget::new(
+                format!(
+                    "--decompositions-file {} ({count} decompositions)",
+                    f.display()
+                ),
+                Work::Decompositions {
+                    count,
+                    candidates: 0,
+                },
+            )
+        }
+        None => Budget::new(
+            format!("--decompositions {}", args.decompositions),
+            Work::decompositions(args.decompositions),
+        ),
+    };
+    let loaded = read_map_within("--map", &map_path, &budget)?;
     let map = &loaded.map;
     let decs = decompositions_for(
         &model,

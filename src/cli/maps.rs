@@ -12,22 +12,15 @@ use graphspn_compiler::map::synthetic::{SyntheticParams, generate};
 use graphspn_compiler::render::{RenderOptions, render_svg};
 use graphspn_compiler::treemix::SpanningTrees;
 
+use graphspn_compiler::domain;
+
 use super::common::{
-    data_dir, declare_map, load_any_model, read_map, require_data_dir, write_stdout,
+    data_dir, declare_map, flag_domain, load_any_model, read_map, require_data_dir, write_stdout,
 };
 use super::output::{Outputs, write_files};
 
-/// Smallest and largest synthetic floor (places).
-const SYNTHETIC_PLACES: std::ops::RangeInclusive<usize> = 10..=100_000;
-
 fn synthetic(flag: &str, places: usize, seed: u64) -> Result<TopoMap> {
-    if !SYNTHETIC_PLACES.contains(&places) {
-        bail!(
-            "{flag} {places}: a synthetic floor has {} to {} places",
-            SYNTHETIC_PLACES.start(),
-            SYNTHETIC_PLACES.end()
-        );
-    }
+    flag_domain(flag, domain::synthetic_places("places", places))?;
     generate(&SyntheticParams::new(places, seed))
         .with_context(|| format!("generating a synthetic floor of {places} places (seed {seed})"))
 }

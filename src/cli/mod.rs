@@ -1,9 +1,11 @@
 //! Sub-commands of the `graphspn` tool that have grown beyond a few lines, one file each.
 
+pub mod budget;
 pub mod common;
 pub mod compile;
 pub mod decompose;
 pub mod evaluate;
+pub mod evidence;
 pub mod generated_check;
 pub mod infer;
 pub mod instance;

@@ -6,6 +6,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::decompose::DecompositionStrategy;
+use graphspn_compiler::domain;
 use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
 use graphspn_compiler::experiments::report::{validation_markdown, write_outputs};
 use graphspn_compiler::experiments::reproduce::{ReproduceConfig, load_data, run};
@@ -16,7 +17,7 @@ use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
 use std::collections::BTreeMap;
 
-use super::common::{check_buildings, check_decomposition_count, require_data_dir};
+use super::common::{check_buildings, flag_domain, flag_error, require_data_dir};
 use super::output::{Outputs, write_folder};
 
 /// Arguments of `graphspn reproduce`.
@@ -150,9 +151,7 @@ impl ProtocolOptions {
                 .collect::<Result<_, _>>()?;
         }
         if let Some(r) = self.rounds {
-            if r == 0 {
-                bail!("--rounds 0: run at least one round");
-            }
+            flag_domain("--rounds", domain::rounds("rounds", r))?;
             cfg.rounds = r;
         }
         if self.no_novelty {
@@ -209,17 +208,62 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
     Ok(())
 }
 
-/// Reads the per-building settings of a validation.json.
+/// A validation.json as `--settings` reads it: the chosen settings per test building
+/// (and the validation that chose them, not read).
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SettingsFile {
+    settings: BTreeMap<String, ModelSettings>,
+    #[serde(default)]
+    #[allow(dead_code)]
+    validation: serde::de::IgnoredAny,
+}
+
+/// Reads the per-building settings of a validation.json: unknown fields are errors,
+/// and every building's settings are checked against their domains
+/// ([`ModelSettings::check`]) before any work.
+/// Errors start with `--settings PATH`.
 pub fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSettings>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    let s = v
-        .get("settings")
-        .with_context(|| format!("{}: no \"settings\" object", path.display()))?;
-    serde_json::from_value(s.clone())
-        .with_context(|| format!("{}: bad \"settings\"", path.display()))
+    let at = format!("--settings {}", path.display());
+    let text = std::fs::read_to_string(path).with_context(|| at.clone())?;
+    let file: SettingsFile = serde_json::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "{at}:{}:{}: not a settings file (graphspn validate writes validation.json): {e}",
+            e.line(),
+            e.column()
+        )
+    })?;
+    for (building, s) in &file.settings {
+        s.check().map_err(|e| {
+            let path: Vec<&str> = ["settings", building.as_str()]
+                .into_iter()
+                .chain(e.setting.split('.'))
+                .collect();
+            let line = key_line(&text, &path).map_or(String::new(), |l| format!(":{l}"));
+            anyhow::anyhow!("{at}{line}: settings of {building}: {e}")
+        })?;
+    }
+    Ok(file.settings)
+}
+
+/// The line of the value at `path` (object keys, outermost first) in the JSON `text`,
+/// found by looking for each key after the previous one (each nested object follows
+/// its key); `None` if a key is not there (a value taken by default).
+fn key_line(text: &str, path: &[&str]) -> Option<usize> {
+    let mut at = 0;
+    for key in path {
+        let quoted = serde_json::to_string(key).ok()?;
+        let mut from = at;
+        at = loop {
+            let i = from + text[from..].find(&quoted)?;
+            let after = text[i + quoted.len()..].trim_start();
+            if after.starts_with(':') {
+                break i + quoted.len();
+            }
+            from = i + quoted.len();
+        };
+    }
+    Some(text[..at].matches('\n').count() + 1)
 }
 
 /// Runs `graphspn reproduce`.
@@ -235,16 +279,23 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     }
     if args.decompositions.is_some() || args.candidates.is_some() {
         let d = args.decompositions.unwrap_or(5);
-        check_decomposition_count("--decompositions", d)?;
         let cands = args.candidates.unwrap_or((3 * d).max(15));
-        if cands < d {
-            bail!("--candidates {cands}: must be at least the {d} decompositions kept");
-        }
         // Both strategies with this D; validation picks one.
         cfg.grid.graphspn_decompositions = DecompositionStrategy::ALL
             .iter()
             .map(|&s| DecompositionChoice::new(s, d, cands))
             .collect();
+        DecompositionChoice::new(DecompositionStrategy::Paper, d, cands)
+            .check()
+            .map_err(|e| {
+                flag_error(
+                    e,
+                    &[
+                        ("count", "--decompositions"),
+                        ("candidates", "--candidates"),
+                    ],
+                )
+            })?;
     }
     if let Some(x) = &args.exclude {
         check_buildings("--exclude", std::slice::from_ref(x))?;
@@ -262,19 +313,34 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     }
     args.protocol.apply(&mut cfg)?;
     if let Some(m) = args.maps {
-        if m == 0 {
-            bail!("--maps 0: test at least one map per building");
-        }
+        flag_domain("--maps", domain::maps("maps_per_building", m))?;
         cfg.maps_per_building = m;
     }
     if let Some(p) = &args.settings {
         cfg.settings = Some(read_settings(p)?);
     }
     if let Some(t) = &args.training {
+        if args.settings.is_some() {
+            bail!(
+                "--training: not used with --settings (the saved settings are used as they are); give one or the other"
+            );
+        }
         let patch: serde_json::Value = serde_json::from_str(t).context("--training JSON")?;
         let Some(p) = patch.as_object() else {
             bail!("--training {t}: give a JSON object, e.g. '{{\"em\":\"soft\"}}'");
         };
+        // Keys the run sets itself would be silently replaced: refused.
+        for (key, why) in [
+            ("seed", "every training seed is derived from --seed"),
+            (
+                "temperature",
+                "the template temperature is searched by the validation",
+            ),
+        ] {
+            if p.contains_key(key) {
+                bail!("--training: {key} cannot be set here ({why})");
+            }
+        }
         for (_, settings) in cfg.grid.graphspn_variants.iter_mut() {
             let mut v = settings.to_value();
             if let Some(obj) = v.as_object_mut() {
@@ -283,6 +349,9 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
                 }
             }
             *settings = TrainingSettings::from_value(&v).context("--training settings")?;
+            settings
+                .check()
+                .map_err(|e| anyhow::anyhow!("--training: {e}"))?;
         }
     }
     if args.mrf_pmi {

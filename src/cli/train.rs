@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use graphspn_compiler::family::ModelFamily;
 use graphspn_compiler::learn::{Progress, TrainingSettings, train_model};
@@ -12,7 +12,7 @@ use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
 use graphspn_compiler::treemix::{TreeTraining, train_tree_mixture};
 
-use super::common::{check_buildings, load_buildings, require_data_dir};
+use super::common::{check_buildings, flag_error, load_buildings, require_data_dir};
 use super::output::{Outputs, write_files};
 
 /// Arguments of `graphspn train`.
@@ -37,14 +37,14 @@ pub struct TrainArgs {
     /// Master seed of every random step.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// EM epochs (at least 1).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
-    epochs: Option<u32>,
-    /// Decompositions of each training map per template (at least 1).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
-    decompositions_per_map: Option<u32>,
+    /// EM epochs (1 to 10000; default 10).
+    #[arg(long)]
+    epochs: Option<usize>,
+    /// Decompositions of each training map per template (1 to 1000; default 10).
+    #[arg(long)]
+    decompositions_per_map: Option<usize>,
     /// Template temperature: every sum weight raised to this power and renormalised
-    /// after training (< 1 flattens the learned statistics; default 1, none).
+    /// after training (in (0, 10]; < 1 flattens the learned statistics; default 1, none).
     #[arg(long)]
     temperature: Option<f64>,
     /// Model family: `graphspn` (the paper's template SPNs) or `tree-mixture` (a
@@ -52,22 +52,22 @@ pub struct TrainArgs {
     #[arg(long, default_value = "graphspn", value_parser = parse_family)]
     family: ModelFamily,
     /// Tree mixture: potential form of the edge co-occurrence counts (`joint`,
-    /// `conditional`, `normalised`, `pmi`; default normalised).
+    /// `normalised`, `pmi`; default normalised).
     #[arg(long, value_parser = parse_normalisation)]
     potential: Option<Normalisation>,
-    /// Tree mixture: coupling exponent of the potential (finite, ≥ 0; default 1).
+    /// Tree mixture: coupling exponent of the potential (in [0, 10]; default 1).
     #[arg(long)]
     coupling: Option<f64>,
     /// Tree mixture: the unary potential is the training class shares to this power
-    /// (finite; default 0, uniform).
+    /// (in [-2, 2]; default 0, uniform).
     #[arg(long)]
     prior_exponent: Option<f64>,
-    /// Tree mixture: evidence rows enter as α^γ with this integer γ (1..=8; default 2).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
+    /// Tree mixture: evidence rows enter as α^γ with this integer γ (1 to 8; default 2).
+    #[arg(long)]
     evidence_exponent: Option<u32>,
-    /// Tree mixture: spanning trees per map (1..=64; default 4).
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=64))]
-    trees: Option<u64>,
+    /// Tree mixture: spanning trees per map (1 to 64; default 4).
+    #[arg(long)]
+    trees: Option<usize>,
     /// Tree mixture: how the trees' marginals are combined (`posterior` or
     /// `average`; default average).
     #[arg(long, value_parser = parse_mixing)]
@@ -75,6 +75,28 @@ pub struct TrainArgs {
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
+}
+
+/// The tree-mixture settings the flags set.
+const TREE_FLAGS: [(&str, &str); 5] = [
+    ("potentials.normalisation", "--potential"),
+    ("potentials.coupling", "--coupling"),
+    ("prior_exponent", "--prior-exponent"),
+    ("evidence_exponent", "--evidence-exponent"),
+    ("trees", "--trees"),
+];
+
+/// The GraphSPN training settings the flags set.
+const GRAPHSPN_FLAGS: [(&str, &str); 3] = [
+    ("epochs", "--epochs"),
+    ("decompositions_per_map", "--decompositions-per-map"),
+    ("temperature", "--temperature"),
+];
+
+/// What `train` will learn.
+enum Plan {
+    Graphspn(TrainingSettings),
+    Trees(TreeTraining),
 }
 
 fn parse_family(s: &str) -> Result<ModelFamily, String> {
@@ -123,54 +145,69 @@ pub fn run(args: TrainArgs) -> Result<()> {
     if let Some((flag, _)) = wrong.iter().find(|f| f.1) {
         anyhow::bail!("{flag} applies to --family {family} only");
     }
-    let maps = load_buildings(&data, &args.buildings)?;
-    if args.family == ModelFamily::TreeMixture {
-        let mut t = TreeTraining::default();
-        if let Some(p) = args.potential {
-            t.potentials.normalisation = p;
+    // The settings, checked against their domains before the maps are read.
+    let settings = match args.family {
+        ModelFamily::TreeMixture => {
+            let mut t = TreeTraining::default();
+            if let Some(p) = args.potential {
+                t.potentials.normalisation = p;
+            }
+            if let Some(c) = args.coupling {
+                t.potentials.coupling = c;
+            }
+            if let Some(r) = args.prior_exponent {
+                t.prior_exponent = r;
+            }
+            if let Some(g) = args.evidence_exponent {
+                t.evidence_exponent = g;
+            }
+            if let Some(n) = args.trees {
+                t.trees = n;
+            }
+            if let Some(m) = args.mixing {
+                t.mixing = m;
+            }
+            t.check().map_err(|e| flag_error(e, &TREE_FLAGS))?;
+            Plan::Trees(t)
         }
-        if let Some(c) = args.coupling {
-            t.potentials.coupling = c;
+        ModelFamily::Graphspn => {
+            let mut settings = TrainingSettings {
+                seed: args.seed,
+                ..TrainingSettings::default()
+            };
+            if let Some(e) = args.epochs {
+                settings.epochs = e;
+            }
+            if let Some(d) = args.decompositions_per_map {
+                settings.decompositions_per_map = d;
+            }
+            if let Some(t) = args.temperature {
+                settings.temperature = t;
+            }
+            settings
+                .check()
+                .map_err(|e| flag_error(e, &GRAPHSPN_FLAGS))?;
+            Plan::Graphspn(settings)
         }
-        if let Some(r) = args.prior_exponent {
-            t.prior_exponent = r;
-        }
-        if let Some(g) = args.evidence_exponent {
-            t.evidence_exponent = g;
-        }
-        if let Some(n) = args.trees {
-            t.trees = n as usize;
-        }
-        if let Some(m) = args.mixing {
-            t.mixing = m;
-        }
-        let start = Instant::now();
-        let model = train_tree_mixture(&maps, &t)?;
-        let text = model.to_json()?;
-        write_files(&[(&args.out, text.as_bytes())])?;
-        eprintln!(
-            "trained a tree mixture ({}) on {} maps in {:.2} s; wrote {}",
-            t.label(),
-            maps.len(),
-            start.elapsed().as_secs_f64(),
-            args.out.display()
-        );
-        return Ok(());
-    }
-    let mut settings = TrainingSettings {
-        seed: args.seed,
-        ..TrainingSettings::default()
     };
-    if let Some(e) = args.epochs {
-        settings.epochs = e as usize;
-    }
-    if let Some(d) = args.decompositions_per_map {
-        settings.decompositions_per_map = d as usize;
-    }
-    if let Some(t) = args.temperature {
-        graphspn_compiler::learn::check_temperature(t).context("--temperature")?;
-        settings.temperature = t;
-    }
+    let maps = load_buildings(&data, &args.buildings)?;
+    let settings = match settings {
+        Plan::Graphspn(s) => s,
+        Plan::Trees(t) => {
+            let start = Instant::now();
+            let model = train_tree_mixture(&maps, &t)?;
+            let text = model.to_json()?;
+            write_files(&[(&args.out, text.as_bytes())])?;
+            eprintln!(
+                "trained a tree mixture ({}) on {} maps in {:.2} s; wrote {}",
+                t.label(),
+                maps.len(),
+                start.elapsed().as_secs_f64(),
+                args.out.display()
+            );
+            return Ok(());
+        }
+    };
     let start = Instant::now();
     let (model, trainings) = train_model(&maps, &Template::paper_set(), &settings, Progress::Auto)?;
     let elapsed = start.elapsed();

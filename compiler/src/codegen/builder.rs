@@ -186,21 +186,35 @@ pub fn is_generated_file(text: &str) -> bool {
     text.starts_with(GENERATED_MARKER)
 }
 
-/// Checks that `name` is a Rust identifier (ASCII letters, digits, `_`; not starting
-/// with a digit), as module names of generated files must be.
+/// Checks that `name` can name the generated module (`pub mod <name> { include!(...) }`):
+/// a Rust identifier (ASCII letters, digits, `_`; not starting with a digit), not `_`
+/// alone and not a keyword of any edition (strict, reserved, and `gen`, reserved in
+/// 2024), which would make that line fail to compile.
 pub fn check_module_name(name: &str) -> Result<(), BuildError> {
+    const KEYWORDS: &[&str] = &[
+        "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum",
+        "extern", "false", "fn", "for", "if", "impl", "in", "let", "loop", "match", "mod", "move",
+        "mut", "pub", "ref", "return", "self", "Self", "static", "struct", "super", "trait",
+        "true", "type", "unsafe", "use", "where", "while", "abstract", "become", "box", "do",
+        "final", "gen", "macro", "override", "priv", "try", "typeof", "unsized", "virtual",
+        "yield",
+    ];
     let ident = name
         .chars()
         .next()
         .is_some_and(|c| c == '_' || c.is_ascii_alphabetic())
         && name.chars().all(|c| c == '_' || c.is_ascii_alphanumeric());
-    if ident {
-        Ok(())
-    } else {
-        Err(BuildError::BadOption(format!(
-            "module name {name:?} is not a Rust identifier"
-        )))
+    if !ident || name == "_" {
+        return Err(BuildError::BadOption(format!(
+            "module name {name:?} is not a Rust identifier (letters, digits and _, not starting with a digit)"
+        )));
     }
+    if KEYWORDS.contains(&name) {
+        return Err(BuildError::BadOption(format!(
+            "module name {name:?} is a Rust keyword: `pub mod {name}` would not compile (e.g. {name}_map)"
+        )));
+    }
+    Ok(())
 }
 
 /// Refuses to replace an existing file that this generator did not write (see
@@ -409,7 +423,8 @@ impl Builder {
     }
 
     /// File stem of the output, `<name>.rs` in the output directory (default `map`);
-    /// must be a Rust identifier.
+    /// must be a Rust identifier that can name a module ([`check_module_name`]:
+    /// not a keyword), checked by [`Builder::run`] before the inputs are read.
     pub fn module_name(mut self, name: impl Into<String>) -> Self {
         self.module_name = name.into();
         self
@@ -582,11 +597,13 @@ impl Builder {
 
     /// The file [`Builder::run`] writes.
     pub fn output_path(&self) -> Result<PathBuf, BuildError> {
+        // Checked even with an exact output file: the name is the module the file is
+        // meant for (`pub mod <name> { include!(...) }`).
+        let name = &self.module_name;
+        check_module_name(name)?;
         if let Some(f) = &self.out_file {
             return Ok(f.clone());
         }
-        let name = &self.module_name;
-        check_module_name(name)?;
         let dir = match &self.out_dir {
             Some(d) => d.clone(),
             None => std::env::var_os("OUT_DIR")
@@ -607,6 +624,8 @@ impl Builder {
     /// An existing output file without the `@generated` line is an error
     /// ([`BuildError::NotGenerated`]) unless [`Builder::overwrite`] allows replacing it.
     pub fn run(self) -> Result<PathBuf, BuildError> {
+        // Before the inputs are read: a bad name would fail only at the end.
+        check_module_name(&self.module_name)?;
         if self.cargo_lines {
             println!("cargo:rerun-if-changed={}", self.model.display());
             println!("cargo:rerun-if-changed={}", self.map.display());

@@ -204,12 +204,70 @@ pub fn from_json(
     map: &TopoMap,
     templates: &[Template],
 ) -> Result<Vec<Decomposition>, DecompositionFileError> {
-    let repr: FileRepr =
-        serde_json::from_str(text).map_err(|e| DecompositionFileError::Syntax {
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
+    from_repr(serde_json::from_str(text).map_err(syntax)?, map, templates)
+}
+
+fn syntax(e: serde_json::Error) -> DecompositionFileError {
+    DecompositionFileError::Syntax {
+        line: e.line(),
+        column: e.column(),
+        message: e.to_string(),
+    }
+}
+
+/// How many decompositions the file at `path` holds, read as a stream without keeping
+/// them (so a caller can refuse a file too large for its work before loading it).
+/// Only the syntax is checked; [`load`] checks the rest.
+pub fn count(path: &Path) -> Result<usize, DecompositionFileError> {
+    struct Count(usize);
+    impl<'de> Deserialize<'de> for Count {
+        fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            struct V;
+            impl<'de> serde::de::Visitor<'de> for V {
+                type Value = Count;
+                fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                    f.write_str("a list of decompositions")
+                }
+                fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                    self,
+                    mut s: A,
+                ) -> Result<Count, A::Error> {
+                    let mut n = 0;
+                    while s.next_element::<serde::de::IgnoredAny>()?.is_some() {
+                        n += 1;
+                    }
+                    Ok(Count(n))
+                }
+            }
+            d.deserialize_seq(V)
+        }
+    }
+    #[derive(Deserialize)]
+    struct Counted {
+        decompositions: Count,
+    }
+    let in_file = |e| DecompositionFileError::InFile {
+        path: path.to_path_buf(),
+        source: Box::new(e),
+    };
+    let reader = open(path)?;
+    let c: Counted = serde_json::from_reader(reader).map_err(|e| in_file(syntax(e)))?;
+    Ok(c.decompositions.0)
+}
+
+fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>, DecompositionFileError> {
+    let f = std::fs::File::open(path).map_err(|source| DecompositionFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(std::io::BufReader::with_capacity(1 << 16, f))
+}
+
+fn from_repr(
+    repr: FileRepr,
+    map: &TopoMap,
+    templates: &[Template],
+) -> Result<Vec<Decomposition>, DecompositionFileError> {
     if repr.format != FORMAT_VERSION {
         return Err(DecompositionFileError::Format { found: repr.format });
     }
@@ -301,12 +359,13 @@ pub fn load(
     map: &TopoMap,
     templates: &[Template],
 ) -> Result<Vec<Decomposition>, DecompositionFileError> {
-    let text = std::fs::read_to_string(path).map_err(|source| DecompositionFileError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    from_json(&text, map, templates).map_err(|e| DecompositionFileError::InFile {
-        path: path.to_path_buf(),
-        source: Box::new(e),
-    })
+    // Read as a stream: the decompositions, not the file's text, are kept.
+    let reader = open(path)?;
+    serde_json::from_reader(reader)
+        .map_err(syntax)
+        .and_then(|repr| from_repr(repr, map, templates))
+        .map_err(|e| DecompositionFileError::InFile {
+            path: path.to_path_buf(),
+            source: Box::new(e),
+        })
 }

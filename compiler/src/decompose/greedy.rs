@@ -45,6 +45,13 @@ impl DecompositionStrategy {
     }
 }
 
+/// Largest number of decompositions an instance mixes (every command and settings
+/// file is held to it).
+pub const MAX_DECOMPOSITIONS: usize = 1000;
+
+/// Largest number of candidate decompositions drawn.
+pub const MAX_CANDIDATES: usize = 3 * MAX_DECOMPOSITIONS;
+
 /// Settings of [`decompose_best`]. Defaults are the authors': 15 candidates,
 /// best 5 kept, [`DecompositionStrategy::Paper`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

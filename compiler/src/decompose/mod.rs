@@ -19,7 +19,8 @@ mod greedy;
 pub mod synthetic;
 
 pub use greedy::{
-    DecompositionParams, DecompositionStrategy, decompose, decompose_best, template_shares,
+    DecompositionParams, DecompositionStrategy, MAX_CANDIDATES, MAX_DECOMPOSITIONS, decompose,
+    decompose_best, template_shares,
 };
 
 /// One component of a decomposition: a copy of a template placed on the map.

@@ -706,6 +706,31 @@ pub fn load_data(data: &Path) -> Result<BTreeMap<String, Vec<TopoMap>>, Reproduc
         .collect()
 }
 
+/// Every setting `cfg` holds against its documented domain ([`crate::domain`]), before
+/// any work: the rounds and maps per building, the settings given per test building,
+/// the paper-style models' and every candidate of the validation grid.
+pub fn check_settings(cfg: &ReproduceConfig) -> Result<(), ReproduceError> {
+    let bad =
+        |what: &str, e: crate::domain::DomainError| ReproduceError::Config(format!("{what}: {e}"));
+    crate::domain::rounds("rounds", cfg.rounds).map_err(|e| bad("protocol", e))?;
+    crate::domain::maps("maps_per_building", cfg.maps_per_building)
+        .map_err(|e| bad("protocol", e))?;
+    if let Some(given) = &cfg.settings {
+        for (b, s) in given {
+            s.check()
+                .map_err(|e| bad(&format!("settings of test building {b}"), e))?;
+        }
+    }
+    cfg.graphspn_paper
+        .check()
+        .map_err(|e| bad("paper-style GraphSPN", e))?;
+    cfg.cooccurrence
+        .check()
+        .map_err(|e| bad("paper-style MRF potentials", e))?;
+    cfg.bp.check().map_err(|e| bad("paper-style MRF BP", e))?;
+    cfg.grid.check().map_err(|e| bad("validation grid", e))
+}
+
 /// Runs every experiment of `cfg` on the maps in `all`; returns the results
 /// and the per-building setups (for figures).
 pub fn run(
@@ -717,6 +742,7 @@ pub fn run(
             "need at least one level and one round".into(),
         ));
     }
+    check_settings(cfg)?;
     let mut validation: Vec<Validation> = Vec::new();
     let mut setups = Vec::new();
     for b in &cfg.test_buildings {

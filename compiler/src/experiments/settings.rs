@@ -1,26 +1,48 @@
 //! The settings of every compared model (what validation chooses and
 //! `graphspn validate` saves): GraphSPN's, each tuned MRF's and the tree mixture's.
+//!
+//! Read from a file (`--settings`), unknown fields are errors, and
+//! [`ModelSettings::check`] tests every numeric setting against the domain documented
+//! on its field before any work ([`crate::domain`]).
 
 use serde::{Deserialize, Serialize};
 
-use crate::decompose::{DecompositionParams, DecompositionStrategy};
+use crate::decompose::{DecompositionParams, DecompositionStrategy, MAX_CANDIDATES};
+use crate::domain::{self, DomainError};
 use crate::learn::TrainingSettings;
 use crate::mrf::{BpOptions, CooccurrenceParams, Schedule};
 use crate::spn::Mixing;
 use crate::treemix::TreeTraining;
 
+/// Largest evidence exponent of GraphSPN and the MRFs (rows are raised to it).
+pub const MAX_ROW_EXPONENT: f64 = 16.0;
+
 /// Settings of one MRF baseline.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MrfSetting {
     /// How potentials are made from the training counts.
     pub potentials: CooccurrenceParams,
-    /// Each evidence row is raised to this power and renormalised before inference.
+    /// Each evidence row is raised to this power and renormalised before inference
+    /// (finite, in (0, [`MAX_ROW_EXPONENT`]]).
     pub evidence_exponent: f64,
     /// Loopy BP options.
     pub bp: BpOptions,
 }
 
 impl MrfSetting {
+    /// Every numeric setting against its documented domain.
+    pub fn check(&self) -> Result<(), DomainError> {
+        self.potentials.check().map_err(|e| e.under("potentials"))?;
+        domain::left_open(
+            "evidence_exponent",
+            self.evidence_exponent,
+            0.0,
+            MAX_ROW_EXPONENT,
+        )?;
+        self.bp.check().map_err(|e| e.under("bp"))
+    }
+
     /// The paper-style MRF: raw joint frequencies, coupling 1, raw evidence.
     pub fn paper(bp: BpOptions) -> Self {
         MrfSetting {
@@ -74,12 +96,14 @@ impl MrfSetting {
 /// Which decompositions an instance GraphSPN mixes: how they are drawn, how many
 /// are kept and of how many candidates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct DecompositionChoice {
     /// How candidates are drawn and ranked.
     pub strategy: DecompositionStrategy,
-    /// Decompositions kept (the instance's D).
+    /// Decompositions kept (the instance's D; 1 to
+    /// [`MAX_DECOMPOSITIONS`](crate::decompose::MAX_DECOMPOSITIONS)).
     pub count: usize,
-    /// Candidates drawn.
+    /// Candidates drawn (`count` to [`MAX_CANDIDATES`]).
     pub candidates: usize,
 }
 
@@ -95,6 +119,17 @@ impl Default for DecompositionChoice {
 }
 
 impl DecompositionChoice {
+    /// Every count against its documented domain.
+    pub fn check(&self) -> Result<(), DomainError> {
+        domain::decompositions("count", self.count)?;
+        domain::count(
+            "candidates",
+            self.candidates as u64,
+            self.count as u64,
+            MAX_CANDIDATES as u64,
+        )
+    }
+
     /// `strategy`, `count` of `candidates`.
     pub fn new(strategy: DecompositionStrategy, count: usize, candidates: usize) -> Self {
         DecompositionChoice {
@@ -127,13 +162,15 @@ impl DecompositionChoice {
 
 /// Settings of GraphSPN.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GraphSpnSetting {
     /// Name of the training variant (template structure).
     pub variant: String,
     /// Training settings (the seed is replaced per building); `training.temperature`
     /// is the template temperature.
     pub training: TrainingSettings,
-    /// Each evidence row is raised to this power and renormalised before inference.
+    /// Each evidence row is raised to this power and renormalised before inference
+    /// (finite, in (0, [`MAX_ROW_EXPONENT`]]).
     pub evidence_exponent: f64,
     /// The decompositions of each test map's instance.
     #[serde(default)]
@@ -142,12 +179,28 @@ pub struct GraphSpnSetting {
     #[serde(default)]
     pub mixing: Mixing,
     /// Class-prior correction β: evidence rows are multiplied by `prior^-β` (the
-    /// training maps' class shares; see [`super::reproduce::graphspn_rows`]). 0 = none.
+    /// training maps' class shares; see [`super::reproduce::graphspn_rows`]). 0 = none,
+    /// 1 = divided by the prior entirely (finite, in [0, 1]).
     #[serde(default)]
     pub prior_correction: f64,
 }
 
 impl GraphSpnSetting {
+    /// Every numeric setting against its documented domain.
+    pub fn check(&self) -> Result<(), DomainError> {
+        self.training.check().map_err(|e| e.under("training"))?;
+        domain::left_open(
+            "evidence_exponent",
+            self.evidence_exponent,
+            0.0,
+            MAX_ROW_EXPONENT,
+        )?;
+        self.decompositions
+            .check()
+            .map_err(|e| e.under("decompositions"))?;
+        domain::closed("prior_correction", self.prior_correction, 0.0, 1.0)
+    }
+
     /// The paper's GraphSPN: default training (our symmetric Star), raw evidence,
     /// the best 5 of 15 decompositions, the exact mixture's marginals.
     pub fn paper() -> Self {
@@ -193,6 +246,7 @@ impl GraphSpnSetting {
 
 /// The settings of every model for one test building.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ModelSettings {
     /// GraphSPN.
     pub graphspn: GraphSpnSetting,
@@ -203,4 +257,16 @@ pub struct ModelSettings {
     /// The tree mixture (its training settings; the fit's seed is replaced per
     /// building).
     pub trees: TreeTraining,
+}
+
+impl ModelSettings {
+    /// Every model's settings against their documented domains (the one check:
+    /// experiments and the command line call it on settings from a file). Errors name
+    /// the setting by its JSON path, e.g. `graphspn.prior_correction`.
+    pub fn check(&self) -> Result<(), DomainError> {
+        self.graphspn.check().map_err(|e| e.under("graphspn"))?;
+        self.mrf2.check().map_err(|e| e.under("mrf2"))?;
+        self.mrf3.check().map_err(|e| e.under("mrf3"))?;
+        self.trees.check().map_err(|e| e.under("trees"))
+    }
 }

@@ -93,6 +93,79 @@ fn variant(name: &str, split: SplitChoice) -> (String, TrainingSettings) {
 }
 
 impl ValidationGrid {
+    /// Every candidate value against the domain of the setting it becomes: each is
+    /// put into that model's settings and checked by their one check
+    /// ([`ModelSettings::check`]), so the grid and a settings file are held to the
+    /// same domains. Errors name the grid entry, e.g. `tree_couplings: potentials.coupling = -1: …`.
+    pub fn check(&self) -> Result<(), crate::domain::DomainError> {
+        let gspn = |name: &str, edit: &dyn Fn(&mut GraphSpnSetting)| {
+            let mut s = GraphSpnSetting::paper();
+            edit(&mut s);
+            s.check().map_err(|e| e.under(name))
+        };
+        let mrf = |name: &str, edit: &dyn Fn(&mut MrfSetting)| {
+            let mut s = MrfSetting::paper(BpOptions::default());
+            edit(&mut s);
+            s.check().map_err(|e| e.under(name))
+        };
+        let tree = |name: &str, edit: &dyn Fn(&mut TreeTraining)| {
+            let mut s = TreeTraining::default();
+            edit(&mut s);
+            s.check().map_err(|e| e.under(name))
+        };
+        for (name, t) in &self.graphspn_variants {
+            gspn(&format!("graphspn_variants.{name}"), &|s| {
+                s.training = t.clone()
+            })?;
+        }
+        for &x in &self.graphspn_exponents {
+            gspn("graphspn_exponents", &|s| s.evidence_exponent = x)?;
+        }
+        for &x in &self.graphspn_temperatures {
+            gspn("graphspn_temperatures", &|s| s.training.temperature = x)?;
+        }
+        for &d in &self.graphspn_decompositions {
+            gspn("graphspn_decompositions", &|s| s.decompositions = d)?;
+        }
+        for &x in &self.graphspn_prior_corrections {
+            gspn("graphspn_prior_corrections", &|s| s.prior_correction = x)?;
+        }
+        for &x in &self.couplings {
+            mrf("couplings", &|s| s.potentials.coupling = x)?;
+        }
+        for &x in &self.mrf_exponents {
+            mrf("mrf_exponents", &|s| s.evidence_exponent = x)?;
+        }
+        for bp in &self.schedules {
+            mrf("schedules", &|s| s.bp = *bp)?;
+        }
+        for &x in &self.tree_forms {
+            tree("tree_forms", &|s| s.potentials.normalisation = x)?;
+        }
+        for &x in &self.tree_couplings {
+            tree("tree_couplings", &|s| s.potentials.coupling = x)?;
+        }
+        for &x in &self.tree_prior_exponents {
+            tree("tree_prior_exponents", &|s| s.prior_exponent = x)?;
+        }
+        for &x in &self.tree_exponents {
+            tree("tree_exponents", &|s| s.evidence_exponent = x)?;
+        }
+        for &x in &self.tree_counts {
+            tree("tree_counts", &|s| s.trees = x)?;
+        }
+        for &x in &self.tree_fit_penalties {
+            tree("tree_fit_penalties", &|s| {
+                s.fit = Some(NoiseFit {
+                    penalty: x,
+                    rounds: 1,
+                    seed: 0,
+                })
+            })?;
+        }
+        crate::domain::maps("maps_per_building", self.maps_per_building)
+    }
+
     /// The grid of `graphspn reproduce` / `graphspn validate`:
     /// - GraphSPN (768 candidates): 2 Star structures × template temperature
     ///   {1, 0.8, 0.6} × evidence exponent {1, 2, 3, 4} × class-prior correction
@@ -544,6 +617,8 @@ pub fn validate_for(
     cfg: &ReproduceConfig,
 ) -> Result<Validation, ReproduceError> {
     let grid = &cfg.grid;
+    grid.check()
+        .map_err(|e| ReproduceError::Config(format!("validation grid: {e}")))?;
     let others = training_buildings(all, test_building, cfg)?;
     if others.len() < 2 {
         return Err(ReproduceError::Config(format!(

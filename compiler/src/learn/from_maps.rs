@@ -56,6 +56,9 @@ pub enum TrainModelError {
     /// The template temperature is not finite and positive.
     #[error(transparent)]
     Temperature(#[from] super::BadTemperature),
+    /// A training setting is outside its domain ([`TrainingSettings::check`]).
+    #[error("training settings: {0}")]
+    Settings(#[from] crate::domain::DomainError),
 }
 
 /// What [`train_model`] learned, per template.
@@ -148,7 +151,7 @@ pub fn train_model(
     progress: Progress,
 ) -> Result<(Model, Vec<TemplateTraining>), TrainModelError> {
     let first = maps.first().ok_or(TrainModelError::NoMaps)?;
-    super::check_temperature(settings.temperature)?;
+    settings.check()?;
     if templates.is_empty() {
         return Err(TrainModelError::NoTemplates);
     }

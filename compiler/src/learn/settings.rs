@@ -6,6 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::domain::{self, DomainError, End};
+
 #[cfg(feature = "host")]
 use crate::map::ClassId;
 #[cfg(feature = "host")]
@@ -50,32 +52,37 @@ pub enum Symmetry {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrainingSettings {
-    /// Random decompositions of each training map per template (authors: 10).
+    /// Random decompositions of each training map per template (authors: 10; 1 to
+    /// 1,000).
     pub decompositions_per_map: usize,
     /// Also add each component's sample with its nodes reversed, as the authors
     /// did (redundant when `symmetry` is `augment` or `tied`).
     pub add_reversed: bool,
     /// Dense structure parameters.
     pub structure: DenseParams,
-    /// EM epochs (authors: 10).
+    /// EM epochs (authors: 10; 1 to 10,000).
     pub epochs: usize,
-    /// Additive smoothing (pseudo-count per sum edge) in the first epoch (authors: 30).
+    /// Additive smoothing (pseudo-count per sum edge) in the first epoch (authors: 30;
+    /// finite, in (0, 1e6]: it keeps every weight positive).
     pub smoothing_start: f64,
-    /// Additive smoothing in the last epoch; it decays linearly in between (authors: ~5).
+    /// Additive smoothing in the last epoch; it decays linearly in between (authors: ~5;
+    /// same domain).
     pub smoothing_end: f64,
-    /// Distinct samples per work chunk of the E-step (authors: 2,000). Weights are
-    /// updated once per epoch (full-batch EM), so this affects speed, not results.
+    /// Distinct samples per work chunk of the E-step (authors: 2,000; at least 1).
+    /// Weights are updated once per epoch (full-batch EM), so this affects speed, not
+    /// results.
     pub batch_size: usize,
     /// Hard or soft EM.
     pub em: EmKind,
-    /// After training, remove sum edges whose weight is below this (0 = off).
+    /// After training, remove sum edges whose weight is below this (0 = off; in [0, 1)).
     pub prune_threshold: f64,
     /// How template symmetries are handled.
     pub symmetry: Symmetry,
     /// Master seed: structure, initial weights and decompositions derive from it.
     pub seed: u64,
     /// Temperature applied to every template SPN after training (sum weights
-    /// raised to this power and renormalised; see [`super::temperature`]). 1 = none
+    /// raised to this power and renormalised; see [`super::temperature`]; in
+    /// (0, [`MAX_TEMPERATURE`](super::temperature::MAX_TEMPERATURE)]). 1 = none
     /// (and then not written, so model files of untempered models are unchanged).
     #[serde(skip_serializing_if = "is_one")]
     pub temperature: f64,
@@ -121,9 +128,38 @@ impl TrainingSettings {
         serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
     }
 
-    /// From a JSON value (missing fields take their defaults; unknown fields are an error).
+    /// From a JSON value (missing fields take their defaults; unknown fields are an
+    /// error). [`TrainingSettings::check`] checks the values.
     pub fn from_value(v: &serde_json::Value) -> Result<Self, serde_json::Error> {
         TrainingSettings::deserialize(v)
+    }
+
+    /// Every numeric setting against the domain its documentation states (the one
+    /// check: training, the command line and settings files call it). Errors name the
+    /// setting by its JSON path.
+    pub fn check(&self) -> Result<(), DomainError> {
+        domain::count(
+            "decompositions_per_map",
+            self.decompositions_per_map as u64,
+            1,
+            1000,
+        )?;
+        self.structure.check().map_err(|e| e.under("structure"))?;
+        domain::count("epochs", self.epochs as u64, 1, 10_000)?;
+        domain::left_open("smoothing_start", self.smoothing_start, 0.0, 1e6)?;
+        domain::left_open("smoothing_end", self.smoothing_end, 0.0, 1e6)?;
+        domain::count("batch_size", self.batch_size as u64, 1, u64::MAX)?;
+        domain::real(
+            "prune_threshold",
+            self.prune_threshold,
+            (0.0, End::Closed),
+            (1.0, End::Open),
+        )?;
+        super::temperature::check_temperature(self.temperature).map_err(|e| DomainError {
+            setting: "temperature".into(),
+            value: e.0.to_string(),
+            domain: e.domain(),
+        })
     }
 }
 
@@ -131,11 +167,11 @@ impl TrainingSettings {
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DenseParams {
-    /// Random splits per multi-variable region (authors: 1).
+    /// Random splits per multi-variable region (authors: 1; 1 to 16).
     pub decompositions: usize,
-    /// Subsets per split, at most the region size (authors: 3).
+    /// Subsets per split, at most the region size (authors: 3; 2 to 8).
     pub subsets: usize,
-    /// Sums per non-root multi-variable region (authors: 5); the root has one.
+    /// Sums per non-root multi-variable region (authors: 5; 1 to 64); the root has one.
     pub sums: usize,
     /// Balanced subset sizes (sizes differ by at most one; authors: true).
     pub balanced: bool,
@@ -163,6 +199,15 @@ pub enum SplitChoice {
     /// setting of each, `docs/REPRODUCTION.md`).
     #[default]
     MostImages,
+}
+
+impl DenseParams {
+    /// Every count against its documented domain.
+    pub fn check(&self) -> Result<(), DomainError> {
+        domain::count("decompositions", self.decompositions as u64, 1, 16)?;
+        domain::count("subsets", self.subsets as u64, 2, 8)?;
+        domain::count("sums", self.sums as u64, 1, 64)
+    }
 }
 
 impl Default for DenseParams {

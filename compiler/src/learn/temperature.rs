@@ -8,14 +8,25 @@
 use super::Model;
 use crate::spn::{Node, Spn};
 
+/// Largest template temperature. Far beyond it every sum's largest weight takes all
+/// the mass (each sum becomes a maximum), which a temperature is not meant to do.
+pub const MAX_TEMPERATURE: f64 = 10.0;
+
 /// Why a temperature cannot be applied.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("template temperature must be finite and > 0, got {0}")]
+#[error("template temperature {0}: {domain}", domain = self.domain())]
 pub struct BadTemperature(pub f64);
 
-/// Checks a temperature (finite and > 0).
+impl BadTemperature {
+    /// The domain, e.g. `must be finite and in (0, 10]`.
+    pub fn domain(&self) -> String {
+        format!("must be finite and in (0, {MAX_TEMPERATURE}]")
+    }
+}
+
+/// Checks a temperature (finite, in (0, [`MAX_TEMPERATURE`]]).
 pub fn check_temperature(tau: f64) -> Result<(), BadTemperature> {
-    if tau.is_finite() && tau > 0.0 {
+    if tau.is_finite() && tau > 0.0 && tau <= MAX_TEMPERATURE {
         Ok(())
     } else {
         Err(BadTemperature(tau))
@@ -32,8 +43,18 @@ pub fn temper_spn(spn: &mut Spn, tau: f64) -> Result<(), BadTemperature> {
     }
     for node in &mut spn.nodes {
         if let Node::Sum { weights, .. } = node {
-            let powered: Vec<f64> = weights.iter().map(|w| w.powf(tau)).collect();
-            let z: f64 = powered.iter().sum();
+            let mut powered: Vec<f64> = weights.iter().map(|w| w.powf(tau)).collect();
+            let mut z: f64 = powered.iter().sum();
+            if !(z > 0.0 && z.is_finite()) {
+                // Every power under- or overflowed: the same ratios relative to the
+                // largest weight (whose power is then 1), so the temperature is
+                // applied, never skipped.
+                let max = weights.iter().copied().fold(0.0, f64::max);
+                if max > 0.0 {
+                    powered = weights.iter().map(|w| (w / max).powf(tau)).collect();
+                    z = powered.iter().sum();
+                }
+            }
             if z > 0.0 && z.is_finite() {
                 for (w, p) in weights.iter_mut().zip(powered) {
                     *w = p / z;
@@ -61,5 +82,63 @@ impl Model {
             map.insert("temperature".into(), serde_json::json!(before * tau));
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn one_sum(weights: Vec<f64>) -> Spn {
+        Spn {
+            classes: vec![2],
+            nodes: vec![
+                Node::Leaf { var: 0, class: 0 },
+                Node::Leaf { var: 0, class: 1 },
+                Node::Sum {
+                    children: vec![0, 1],
+                    weights,
+                },
+            ],
+            root: 2,
+        }
+    }
+
+    fn weights(spn: &Spn) -> Vec<f64> {
+        match &spn.nodes[2] {
+            Node::Sum { weights, .. } => weights.clone(),
+            _ => unreachable!(),
+        }
+    }
+
+    /// Weights are relative: when every power underflows (1e-40^10) the temperature is
+    /// still applied, to the weights' ratios (it was skipped: recorded but not used).
+    #[test]
+    fn a_temperature_whose_powers_underflow_is_still_applied() {
+        let mut spn = one_sum(vec![1e-40, 3e-40]);
+        temper_spn(&mut spn, 10.0).unwrap();
+        let w = weights(&spn);
+        let expect = 3f64.powi(10);
+        assert!((w[1] / w[0] - expect).abs() < 1e-6 * expect, "{w:?}");
+        assert!((w[0] + w[1] - 1.0).abs() < 1e-12, "{w:?}");
+        let mut spn = one_sum(vec![1e-40, 3e-40]);
+        temper_spn(&mut spn, 2.0).unwrap();
+        let w = weights(&spn);
+        assert!(
+            (w[0] - 0.1).abs() < 1e-12 && (w[1] - 0.9).abs() < 1e-12,
+            "{w:?}"
+        );
+    }
+
+    /// A temperature beyond the domain is refused, not recorded and skipped.
+    #[test]
+    fn a_temperature_out_of_its_domain_is_refused() {
+        for bad in [0.0, -1.0, 10.5, 1e6, f64::INFINITY, f64::NAN] {
+            let mut spn = one_sum(vec![0.25, 0.75]);
+            let err = temper_spn(&mut spn, bad).unwrap_err();
+            assert!(err.to_string().contains("(0, 10]"), "{err}");
+            assert_eq!(weights(&spn), vec![0.25, 0.75]);
+        }
+        assert!(check_temperature(MAX_TEMPERATURE).is_ok());
     }
 }

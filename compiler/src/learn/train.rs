@@ -448,15 +448,9 @@ pub fn train_tied(
     orbits: &EdgeOrbits,
     progress: Progress,
 ) -> Result<TrainingReport, TrainError> {
-    let ok = |s: f64| s > 0.0 && s.is_finite();
-    if !ok(settings.smoothing_start) || !ok(settings.smoothing_end) {
-        return Err(TrainError::BadSettings(
-            "smoothing must be finite and > 0 (it keeps every weight positive)".into(),
-        ));
-    }
-    if settings.batch_size == 0 {
-        return Err(TrainError::BadSettings("batch_size must be ≥ 1".into()));
-    }
+    settings
+        .check()
+        .map_err(|e| TrainError::BadSettings(e.to_string()))?;
     check_samples(spn, samples)?;
     let flat = Flat::new(spn)?;
     let num_edges = flat.woff[spn.nodes.len()];

@@ -127,13 +127,23 @@ fn parse_float(path: &Path, line: usize, column: usize, text: &str) -> Result<f6
     }
 }
 
-fn parse_nodes(path: &Path) -> Result<BTreeMap<i64, RawNode>, MapError> {
-    let text = read(path)?;
+/// Parses `nodes.dat` line by line; with more than `max_places` node lines, the rest
+/// is only counted and the map refused ([`MapError::TooManyPlaces`]).
+fn parse_nodes(path: &Path, max_places: usize) -> Result<BTreeMap<i64, RawNode>, MapError> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path).map_err(|e| MapError::io(path, e))?;
+    let reader = std::io::BufReader::with_capacity(1 << 16, file);
     let mut nodes: BTreeMap<i64, RawNode> = BTreeMap::new();
-    for (k, raw_line) in text.lines().enumerate() {
+    let mut count = 0usize;
+    for (k, raw_line) in reader.lines().enumerate() {
+        let raw_line = raw_line.map_err(|e| MapError::io(path, e))?;
         let line = k + 1;
         let cols: Vec<&str> = raw_line.split_whitespace().collect();
         if cols.is_empty() {
+            continue;
+        }
+        count += 1;
+        if count > max_places {
             continue;
         }
         if cols.len() != NODE_COLUMNS {
@@ -203,6 +213,13 @@ fn parse_nodes(path: &Path) -> Result<BTreeMap<i64, RawNode>, MapError> {
             });
         }
         nodes.insert(id, node);
+    }
+    if count > max_places {
+        return Err(MapError::TooManyPlaces {
+            path: path.to_path_buf(),
+            places: count,
+            limit: max_places,
+        });
     }
     Ok(nodes)
 }
@@ -290,10 +307,20 @@ pub fn load_sequence(dir: impl AsRef<Path>) -> Result<TopoMap, MapError> {
 /// warn about a disconnected map (whose smaller components are dropped) and explain
 /// an evidence row for a dropped place.
 pub fn load_sequence_report(dir: impl AsRef<Path>) -> Result<(TopoMap, Dropped), MapError> {
+    load_sequence_limited(dir, usize::MAX)
+}
+
+/// [`load_sequence_report`] of a map of at most `max_places` places: a `nodes.dat`
+/// listing more nodes is refused ([`MapError::TooManyPlaces`], with the count) while
+/// it is read, before the map is built.
+pub fn load_sequence_limited(
+    dir: impl AsRef<Path>,
+    max_places: usize,
+) -> Result<(TopoMap, Dropped), MapError> {
     let dir = dir.as_ref();
     let nodes_path = dir.join("nodes.dat");
     let rooms_path = dir.join("rooms.dat");
-    let nodes = parse_nodes(&nodes_path)?;
+    let nodes = parse_nodes(&nodes_path, max_places)?;
     let rooms = parse_rooms(&rooms_path)?;
 
     let mut classes_of: BTreeMap<i64, ClassId> = BTreeMap::new();

@@ -146,6 +146,12 @@ pub enum MapError {
         /// The folder.
         path: PathBuf,
     },
+    /// A sub-folder of a folder of maps that is not a COLD sequence.
+    #[error("{}: not a map: every folder among the maps must be a COLD sequence holding nodes.dat and rooms.dat (move it out, or name the maps one by one)", path.display())]
+    NotASequence {
+        /// The sub-folder.
+        path: PathBuf,
+    },
     /// Two places share an id.
     #[error("place id {id} appears twice")]
     DuplicatePlace {
@@ -217,6 +223,18 @@ pub enum MapError {
         column: usize,
         /// What serde_json reported.
         message: String,
+    },
+    /// A map with more places than the caller can take (counted in the file, before
+    /// the map's graph is built).
+    #[error("{}: {places} places, more than the {limit} allowed", path.display())]
+    TooManyPlaces {
+        /// The map file (`nodes.dat` of a COLD map).
+        path: PathBuf,
+        /// Places the file lists (for a COLD map: the lines of `nodes.dat`, before
+        /// filtering).
+        places: usize,
+        /// The limit.
+        limit: usize,
     },
     /// A JSON map of an unsupported format version.
     #[error("unsupported map format {found} (this version reads format {supported})")]

@@ -18,6 +18,7 @@
 
 use std::path::Path;
 
+use serde::de::{DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 
 use super::{ClassSet, MapError, Place, PlaceId, TopoMap};
@@ -25,8 +26,8 @@ use super::{ClassSet, MapError, Place, PlaceId, TopoMap};
 /// The map format version this build writes and reads.
 pub const MAP_FORMAT: u64 = 1;
 
-#[derive(Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// The file as written ([`MapSeed`] reads it, keeping at most a given number of places).
+#[derive(Serialize)]
 struct MapFile {
     format: u64,
     name: String,
@@ -136,11 +137,6 @@ impl serde_json::ser::Formatter for OnePerLine {
     }
 }
 
-#[derive(Deserialize)]
-struct VersionOnly {
-    format: u64,
-}
-
 fn json_error(e: serde_json::Error) -> MapError {
     MapError::Json {
         line: e.line(),
@@ -192,36 +188,8 @@ impl TopoMap {
     /// Parse a JSON map. Errors give the line and column of malformed JSON, or
     /// the place id of an invalid place or edge.
     pub fn from_json(text: &str) -> Result<TopoMap, MapError> {
-        // Check the version first so a future format gets a clear message.
-        if let Ok(v) = serde_json::from_str::<VersionOnly>(text)
-            && v.format != MAP_FORMAT
-        {
-            return Err(MapError::FormatVersion {
-                found: v.format,
-                supported: MAP_FORMAT,
-            });
-        }
-        let file: MapFile = serde_json::from_str(text).map_err(json_error)?;
-        let classes = ClassSet::new(file.classes).map_err(MapError::Classes)?;
-        let mut places = Vec::with_capacity(file.places.len());
-        for p in file.places {
-            let class = match p.class {
-                None => None,
-                Some(name) => Some(classes.index_of(&name).ok_or(MapError::UnknownClass {
-                    id: p.id,
-                    class: name,
-                })?),
-            };
-            places.push(Place {
-                id: p.id,
-                class,
-                placeholder: p.placeholder,
-                x: p.x,
-                y: p.y,
-            });
-        }
-        let edges = file.edges.into_iter().map(|[a, b]| (a, b)).collect();
-        TopoMap::new(file.name, classes, places, edges)
+        let mut de = serde_json::Deserializer::from_str(text);
+        parse_map(&mut de, usize::MAX)
     }
 
     /// Write the map as JSON to `path`.
@@ -232,8 +200,194 @@ impl TopoMap {
 
     /// Read a JSON map from `path`; errors name the file.
     pub fn load(path: impl AsRef<Path>) -> Result<TopoMap, MapError> {
+        Self::load_limited(path, usize::MAX)
+    }
+
+    /// [`TopoMap::load`] of a map of at most `max_places` places. The file is read as a
+    /// stream; places beyond the limit are counted, not kept, and the map is refused
+    /// with [`MapError::TooManyPlaces`] (holding the count) before its graph is built.
+    pub fn load_limited(path: impl AsRef<Path>, max_places: usize) -> Result<TopoMap, MapError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| MapError::io(path, e))?;
-        TopoMap::from_json(&text).map_err(|e| e.in_file(path))
+        let file = std::fs::File::open(path).map_err(|e| MapError::io(path, e))?;
+        let mut de =
+            serde_json::Deserializer::from_reader(std::io::BufReader::with_capacity(1 << 16, file));
+        parse_map(&mut de, max_places).map_err(|e| match e {
+            MapError::TooManyPlaces { places, limit, .. } => MapError::TooManyPlaces {
+                path: path.to_path_buf(),
+                places,
+                limit,
+            },
+            e => e.in_file(path),
+        })
+    }
+}
+
+/// Parses a map from `de` in one pass: at most `max_places` places are kept (the rest
+/// are only counted, and the map refused), the format version is checked where it is
+/// read.
+fn parse_map<'de, R: serde_json::de::Read<'de>>(
+    de: &mut serde_json::Deserializer<R>,
+    max_places: usize,
+) -> Result<TopoMap, MapError> {
+    let problem = std::cell::Cell::new(None);
+    let seed = MapSeed {
+        max_places,
+        problem: &problem,
+    };
+    let parsed = seed
+        .deserialize(&mut *de)
+        .and_then(|f| de.end().map(|()| f));
+    if let Some(e) = problem.take() {
+        return Err(e);
+    }
+    let file = parsed.map_err(json_error)?;
+    if file.places_seen > max_places {
+        return Err(MapError::TooManyPlaces {
+            path: Default::default(),
+            places: file.places_seen,
+            limit: max_places,
+        });
+    }
+    let classes = ClassSet::new(file.classes).map_err(MapError::Classes)?;
+    let mut places = Vec::with_capacity(file.places.len());
+    for p in file.places {
+        let class = match p.class {
+            None => None,
+            Some(name) => Some(classes.index_of(&name).ok_or(MapError::UnknownClass {
+                id: p.id,
+                class: name,
+            })?),
+        };
+        places.push(Place {
+            id: p.id,
+            class,
+            placeholder: p.placeholder,
+            x: p.x,
+            y: p.y,
+        });
+    }
+    let edges = file.edges.into_iter().map(|[a, b]| (a, b)).collect();
+    TopoMap::new(file.name, classes, places, edges)
+}
+
+/// A map file as read: the places kept and how many the file lists.
+struct ReadMap {
+    name: String,
+    classes: Vec<String>,
+    places: Vec<PlaceJson>,
+    places_seen: usize,
+    edges: Vec<[PlaceId; 2]>,
+}
+
+/// Reads a [`MapFile`] keeping at most `max_places` places; a problem that is not
+/// malformed JSON (the format version) goes to `problem`.
+struct MapSeed<'a> {
+    max_places: usize,
+    problem: &'a std::cell::Cell<Option<MapError>>,
+}
+
+const FIELDS: &[&str] = &["format", "name", "classes", "places", "edges"];
+
+impl<'de> DeserializeSeed<'de> for MapSeed<'_> {
+    type Value = ReadMap;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<ReadMap, D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> Visitor<'de> for MapSeed<'_> {
+    type Value = ReadMap;
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a map: {\"format\": 1, \"name\": ..., \"classes\": [...], \"places\": [...], \"edges\": [...]}")
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<ReadMap, A::Error> {
+        use serde::de::Error;
+        let mut format = None;
+        let mut name = None;
+        let mut classes = None;
+        let mut places = None;
+        let mut edges = None;
+        while let Some(key) = m.next_key::<String>()? {
+            let field = FIELDS.iter().copied().find(|f| *f == key);
+            let dup = || A::Error::duplicate_field(field.unwrap_or_default());
+            match key.as_str() {
+                "format" => {
+                    if format.is_some() {
+                        return Err(dup());
+                    }
+                    let f: u64 = m.next_value()?;
+                    if f != MAP_FORMAT {
+                        self.problem.set(Some(MapError::FormatVersion {
+                            found: f,
+                            supported: MAP_FORMAT,
+                        }));
+                        return Err(A::Error::custom("unsupported map format"));
+                    }
+                    format = Some(f);
+                }
+                "name" if name.is_none() => name = Some(m.next_value::<String>()?),
+                "classes" if classes.is_none() => classes = Some(m.next_value::<Vec<String>>()?),
+                "places" if places.is_none() => {
+                    places = Some(m.next_value_seed(PlacesSeed(self.max_places))?)
+                }
+                "edges" if edges.is_none() => {
+                    // Not kept once the map is known to be refused.
+                    let over = places
+                        .as_ref()
+                        .is_some_and(|(_, seen): &(Vec<PlaceJson>, usize)| *seen > self.max_places);
+                    edges = Some(if over {
+                        m.next_value::<IgnoredAny>()?;
+                        Vec::new()
+                    } else {
+                        m.next_value::<Vec<[PlaceId; 2]>>()?
+                    });
+                }
+                "name" | "classes" | "places" | "edges" => return Err(dup()),
+                other => return Err(A::Error::unknown_field(other, FIELDS)),
+            }
+        }
+        if format.is_none() {
+            return Err(A::Error::missing_field("format"));
+        }
+        let (places, places_seen) = places.ok_or_else(|| A::Error::missing_field("places"))?;
+        Ok(ReadMap {
+            name: name.ok_or_else(|| A::Error::missing_field("name"))?,
+            classes: classes.ok_or_else(|| A::Error::missing_field("classes"))?,
+            places,
+            places_seen,
+            edges: edges.ok_or_else(|| A::Error::missing_field("edges"))?,
+        })
+    }
+}
+
+/// The `places` list: the first `.0` places kept, every place counted.
+struct PlacesSeed(usize);
+
+impl<'de> DeserializeSeed<'de> for PlacesSeed {
+    type Value = (Vec<PlaceJson>, usize);
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+        d.deserialize_seq(self)
+    }
+}
+
+impl<'de> Visitor<'de> for PlacesSeed {
+    type Value = (Vec<PlaceJson>, usize);
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a list of places")
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<Self::Value, A::Error> {
+        let mut places = Vec::new();
+        let mut seen = 0usize;
+        while seen < self.0 {
+            match s.next_element::<PlaceJson>()? {
+                Some(p) => places.push(p),
+                None => return Ok((places, seen)),
+            }
+            seen += 1;
+        }
+        while s.next_element::<IgnoredAny>()?.is_some() {
+            seen += 1;
+        }
+        Ok((places, seen))
     }
 }

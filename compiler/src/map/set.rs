@@ -4,18 +4,30 @@
 //! - a JSON map file (our format, `docs/FORMATS.md`): one map;
 //! - a COLD sequence folder (holding `nodes.dat` and `rooms.dat`): one map;
 //! - a folder holding JSON map files (`*.json`) and/or COLD sequence folders: every
-//!   one of them, sorted by file name (other files are ignored).
+//!   one of them, sorted by file name. Every sub-folder must be a COLD sequence (a
+//!   folder without `nodes.dat` is an error naming it, not skipped); other files are
+//!   not read, and [`load_map_set_report`] lists them so a caller can warn; hidden
+//!   entries (`.name`) are skipped.
 
 use std::path::{Path, PathBuf};
 
 use super::{MapError, TopoMap, cold};
 
 /// The maps a path holds (see the module docs), in a fixed order. Errors name the
-/// path: missing, unreadable, a malformed map, or a folder with no map at all.
+/// path: missing, unreadable, a malformed map, a sub-folder that is not a COLD
+/// sequence, or a folder with no map at all.
 pub fn load_map_set(path: impl AsRef<Path>) -> Result<Vec<TopoMap>, MapError> {
+    load_map_set_report(path).map(|(maps, _)| maps)
+}
+
+/// [`load_map_set`], also returning the files of the folder that were not read (not
+/// `*.json`, not hidden), sorted.
+pub fn load_map_set_report(
+    path: impl AsRef<Path>,
+) -> Result<(Vec<TopoMap>, Vec<PathBuf>), MapError> {
     let path = path.as_ref();
     if path.is_file() {
-        return Ok(vec![TopoMap::load(path)?]);
+        return Ok((vec![TopoMap::load(path)?], Vec::new()));
     }
     if !path.is_dir() {
         return Err(MapError::MissingFile {
@@ -23,7 +35,7 @@ pub fn load_map_set(path: impl AsRef<Path>) -> Result<Vec<TopoMap>, MapError> {
         });
     }
     if path.join("nodes.dat").is_file() {
-        return Ok(vec![cold::load_sequence(path)?]);
+        return Ok((vec![cold::load_sequence(path)?], Vec::new()));
     }
     let mut entries: Vec<PathBuf> = std::fs::read_dir(path)
         .map_err(|e| MapError::io(path, e))?
@@ -31,11 +43,23 @@ pub fn load_map_set(path: impl AsRef<Path>) -> Result<Vec<TopoMap>, MapError> {
         .collect::<Result<_, _>>()?;
     entries.sort();
     let mut maps = Vec::new();
+    let mut ignored = Vec::new();
     for p in entries {
-        if p.is_dir() && p.join("nodes.dat").is_file() {
+        let hidden = p
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'));
+        if hidden {
+            continue;
+        }
+        if p.is_dir() {
+            if !p.join("nodes.dat").is_file() {
+                return Err(MapError::NotASequence { path: p });
+            }
             maps.push(cold::load_sequence(&p)?);
-        } else if p.is_file() && p.extension().is_some_and(|x| x == "json") {
+        } else if p.extension().is_some_and(|x| x == "json") {
             maps.push(TopoMap::load(&p)?);
+        } else {
+            ignored.push(p);
         }
     }
     if maps.is_empty() {
@@ -43,7 +67,7 @@ pub fn load_map_set(path: impl AsRef<Path>) -> Result<Vec<TopoMap>, MapError> {
             path: path.to_path_buf(),
         });
     }
-    Ok(maps)
+    Ok((maps, ignored))
 }
 
 /// The name a map set is reported under: the file stem or the folder name.

@@ -71,9 +71,10 @@ pub enum Schedule {
 pub struct BpOptions {
     /// Damping `d ∈ [0, 1)`: new message = `(1 − d)·update + d·old` (probabilities).
     pub damping: f64,
-    /// Convergence threshold on the largest change of a message entry in one sweep.
+    /// Convergence threshold on the largest change of a message entry in one sweep
+    /// (finite, in (0, 1]).
     pub tolerance: f64,
-    /// Largest number of sweeps.
+    /// Largest number of sweeps (1 to 1,000,000).
     pub max_iterations: usize,
     /// Update order.
     pub schedule: Schedule,
@@ -92,23 +93,23 @@ impl Default for BpOptions {
 }
 
 impl BpOptions {
+    /// Every numeric option against its documented domain (the one check: BP, the
+    /// command line and settings files call it).
+    pub fn check(&self) -> Result<(), crate::domain::DomainError> {
+        use crate::domain::{self, End};
+        domain::real(
+            "damping",
+            self.damping,
+            (0.0, End::Closed),
+            (1.0, End::Open),
+        )?;
+        domain::left_open("tolerance", self.tolerance, 0.0, 1.0)?;
+        domain::count("max_iterations", self.max_iterations as u64, 1, 1_000_000)
+    }
+
     fn validate(&self) -> Result<(), MrfError> {
-        if !(0.0..1.0).contains(&self.damping) {
-            return Err(MrfError::BadOptions(format!(
-                "damping must be in [0, 1), got {}",
-                self.damping
-            )));
-        }
-        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
-            return Err(MrfError::BadOptions(format!(
-                "tolerance must be finite and > 0, got {}",
-                self.tolerance
-            )));
-        }
-        if self.max_iterations == 0 {
-            return Err(MrfError::BadOptions("max_iterations must be ≥ 1".into()));
-        }
-        Ok(())
+        self.check()
+            .map_err(|e| MrfError::BadOptions(e.to_string()))
     }
 }
 

@@ -15,8 +15,8 @@ pub mod model;
 pub use bp::{BpOptions, BpResult, Schedule, loopy_bp};
 pub use factor_graph::{ExactResult, Factor, FactorGraph, exact_inference, variable_elimination};
 pub use model::{
-    Cliques, CooccurrenceMrf, CooccurrenceParams, LabelledLikelihood, Mrf2, Mrf3, MrfModel,
-    Normalisation,
+    Cliques, CooccurrenceMrf, CooccurrenceParams, LabelledLikelihood, MAX_COUPLING, Mrf2, Mrf3,
+    MrfModel, Normalisation,
 };
 
 use thiserror::Error;

@@ -62,6 +62,7 @@
 use super::MrfError;
 use super::bp::{BpOptions, BpResult, loopy_bp};
 use super::factor_graph::FactorGraph;
+use crate::domain::{self, DomainError};
 use crate::map::{ClassId, TopoMap};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -109,13 +110,27 @@ impl Normalisation {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CooccurrenceParams {
-    /// Added to every cell of the count table (≥ 0, finite; > 0 keeps all potentials positive).
+    /// Added to every cell of the count table (finite, in [0, 1e6]; > 0 keeps all
+    /// potentials positive).
     pub pseudo_count: f64,
     /// Frequencies → potentials.
     pub normalisation: Normalisation,
-    /// Coupling strength: every potential is raised to this power (finite, ≥ 0;
-    /// 1 = the normalised frequencies as they are, 0 = independent places).
+    /// Coupling strength: every potential is raised to this power (finite, in
+    /// [0, [`MAX_COUPLING`]]; 1 = the normalised frequencies as they are, 0 =
+    /// independent places).
     pub coupling: f64,
+}
+
+/// Largest coupling exponent.
+pub const MAX_COUPLING: f64 = 10.0;
+
+impl CooccurrenceParams {
+    /// Every numeric setting against its documented domain (the one check: training,
+    /// the command line and settings files call it).
+    pub fn check(&self) -> Result<(), DomainError> {
+        domain::closed("pseudo_count", self.pseudo_count, 0.0, 1e6)?;
+        domain::closed("coupling", self.coupling, 0.0, MAX_COUPLING)
+    }
 }
 
 impl Default for CooccurrenceParams {
@@ -256,19 +271,7 @@ fn check_map(map: &TopoMap, c: usize) -> Result<(), MrfError> {
 }
 
 fn check_params(p: &CooccurrenceParams) -> Result<(), MrfError> {
-    if !(p.pseudo_count.is_finite() && p.pseudo_count >= 0.0) {
-        return Err(MrfError::BadOptions(format!(
-            "pseudo_count must be finite and ≥ 0, got {}",
-            p.pseudo_count
-        )));
-    }
-    if !(p.coupling.is_finite() && p.coupling >= 0.0) {
-        return Err(MrfError::BadOptions(format!(
-            "coupling must be finite and ≥ 0, got {}",
-            p.coupling
-        )));
-    }
-    Ok(())
+    p.check().map_err(|e| MrfError::BadOptions(e.to_string()))
 }
 
 fn num_classes_of(maps: &[TopoMap]) -> Result<usize, MrfError> {

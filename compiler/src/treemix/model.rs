@@ -104,18 +104,15 @@ impl TreeMixture {
                 }
             }
         }
-        if !(1..=MAX_EVIDENCE_EXPONENT).contains(&self.evidence_exponent) {
-            return Err(invalid(format!(
-                "evidence_exponent must be in 1..={MAX_EVIDENCE_EXPONENT}, got {}",
-                self.evidence_exponent
-            )));
-        }
-        if !(1..=MAX_TREES).contains(&self.trees) {
-            return Err(invalid(format!(
-                "trees must be in 1..={MAX_TREES}, got {}",
-                self.trees
-            )));
-        }
+        // The same domains as the training settings' ([`crate::domain`]).
+        crate::domain::count(
+            "evidence_exponent",
+            u64::from(self.evidence_exponent),
+            1,
+            u64::from(MAX_EVIDENCE_EXPONENT),
+        )
+        .map_err(|e| invalid(e.to_string()))?;
+        crate::domain::trees("trees", self.trees).map_err(|e| invalid(e.to_string()))?;
         Ok(())
     }
 

@@ -6,8 +6,9 @@ use serde::{Deserialize, Serialize};
 
 use super::TreeMixError;
 use super::fit::{FitGraph, FitOptions, fit_potentials};
-use super::model::TreeMixture;
+use super::model::{MAX_EVIDENCE_EXPONENT, TreeMixture};
 use super::trees::SpanningTrees;
+use crate::domain::{self, DomainError};
 use crate::family::ModelFamily;
 use crate::learn::model::MODEL_FORMAT;
 use crate::map::ClassId;
@@ -25,11 +26,11 @@ pub struct TreeTraining {
     /// pseudo-count per cell) → potential form → raised to the coupling exponent.
     pub potentials: CooccurrenceParams,
     /// `ρ`: the unary potential is `prior^ρ`, the training maps' smoothed class shares
-    /// ([`class_prior`]) to this power (0 = uniform; finite).
+    /// ([`class_prior`]) to this power (0 = uniform; finite, in [-2, 2]).
     pub prior_exponent: f64,
-    /// Evidence exponent `γ` (rows enter as `α^γ`).
+    /// Evidence exponent `γ` (rows enter as `α^γ`; 1 to [`MAX_EVIDENCE_EXPONENT`]).
     pub evidence_exponent: u32,
-    /// Spanning trees per map.
+    /// Spanning trees per map (1 to [`MAX_TREES`](super::MAX_TREES)).
     pub trees: usize,
     /// How the trees' marginals are combined.
     pub mixing: Mixing,
@@ -44,9 +45,9 @@ pub struct TreeTraining {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NoiseFit {
-    /// Penalty weight `λ` ([`FitOptions::penalty`]; finite, > 0).
+    /// Penalty weight `λ` ([`FitOptions::penalty`]; finite, in (0, 1e6]).
     pub penalty: f64,
-    /// Evidence rounds per map, level and placeholder setting (≥ 1).
+    /// Evidence rounds per map, level and placeholder setting (1 to 100).
     pub rounds: usize,
     /// Seed of the simulated evidence and the training maps' forests.
     pub seed: u64,
@@ -72,6 +73,35 @@ impl Default for TreeTraining {
 }
 
 impl TreeTraining {
+    /// Every setting against its documented domain (the one check: training, the
+    /// command line and settings files call it). The potential form must be a
+    /// symmetric one (`joint`, `normalised` or `pmi`): the model's `ψ` is symmetric.
+    pub fn check(&self) -> Result<(), DomainError> {
+        self.potentials.check().map_err(|e| e.under("potentials"))?;
+        if self.potentials.normalisation == Normalisation::Conditional {
+            return Err(DomainError {
+                setting: "potentials.normalisation".into(),
+                value: "conditional".into(),
+                domain:
+                    "must be joint, normalised or pmi (a tree mixture's potential is symmetric)"
+                        .into(),
+            });
+        }
+        domain::closed("prior_exponent", self.prior_exponent, -2.0, 2.0)?;
+        domain::count(
+            "evidence_exponent",
+            u64::from(self.evidence_exponent),
+            1,
+            u64::from(MAX_EVIDENCE_EXPONENT),
+        )?;
+        domain::trees("trees", self.trees)?;
+        if let Some(fit) = &self.fit {
+            domain::left_open("fit.penalty", fit.penalty, 0.0, 1e6)?;
+            domain::count("fit.rounds", fit.rounds as u64, 1, 100)?;
+        }
+        Ok(())
+    }
+
     /// Short description, e.g. `normalised^1, ρ=0, ev^2, 4 trees, average, fit λ=0.001`.
     pub fn label(&self) -> String {
         format!(
@@ -121,12 +151,9 @@ pub fn train_tree_mixture(
     maps: &[TopoMap],
     settings: &TreeTraining,
 ) -> Result<TreeMixture, TreeMixError> {
-    if !settings.prior_exponent.is_finite() {
-        return Err(TreeMixError::Model(format!(
-            "prior_exponent must be finite, got {}",
-            settings.prior_exponent
-        )));
-    }
+    settings
+        .check()
+        .map_err(|e| TreeMixError::Model(format!("training settings: {e}")))?;
     let mrf = Mrf2::train(maps, &settings.potentials)
         .map_err(|e| TreeMixError::Model(format!("counting edge classes: {e}")))?;
     let classes = maps[0].classes.clone();
