@@ -6,9 +6,11 @@
 pub use crate::noise as evidence;
 pub mod ceiling;
 pub mod error;
+pub mod figures;
 pub mod models;
 pub mod novelty;
 pub mod report;
 pub mod reproduce;
 pub mod settings;
+pub mod stats;
 pub mod validate;
