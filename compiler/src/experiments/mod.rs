@@ -11,6 +11,7 @@ pub mod models;
 pub mod novelty;
 pub mod report;
 pub mod reproduce;
+pub mod sets;
 pub mod settings;
 pub mod stats;
 pub mod validate;

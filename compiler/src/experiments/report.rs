@@ -1,5 +1,6 @@
-//! REPORT.md and results.json of a reproduction run, and the figures
-//! ([`super::figures`]) they link to.
+//! REPORT.md and results.json of a run — a reproduction of the paper on the COLD
+//! buildings, or an evaluation of a user's own map sets (`graphspn evaluate`) — and
+//! the figures ([`super::figures`]) they link to.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -11,6 +12,7 @@ use super::novelty::{LOCAL_REGIONS, NoveltySet};
 use super::reproduce::{
     BuildingSetup, Experiment, ReproduceConfig, ReproduceError, Reproduction, run_graph,
 };
+use super::sets::{Evaluation, SetRole};
 use super::stats::{ci_seed, fmt_ci, levels_of};
 
 pub use super::figures::{accuracy_plot, compose_side_by_side, roc_plot};
@@ -36,6 +38,83 @@ fn paper_table2(model: &str, level: u8, building: &str) -> Option<f64> {
         .iter()
         .find(|(m, l, _)| *m == model && *l == level)
         .map(|(_, _, v)| v[bi])
+}
+
+/// `a`, `a and b`, `a, b and c`.
+fn and_list(v: &[&str]) -> String {
+    match v {
+        [] => String::new(),
+        [a] => a.to_string(),
+        [rest @ .., last] => format!("{} and {last}", rest.join(", ")),
+    }
+}
+
+/// A count in words up to ten.
+fn count_words(n: usize) -> String {
+    const W: [&str; 11] = [
+        "no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten",
+    ];
+    W.get(n).map_or_else(|| n.to_string(), |w| w.to_string())
+}
+
+/// What the models were trained and validated on, from the run's own record: e.g.
+/// "the three training buildings Freiburg, Saarbrucken and Stockholm", or, when test
+/// buildings had different ones, each test building's.
+fn training_wording(rep: &Reproduction) -> String {
+    let mut lists: Vec<&Vec<String>> = rep.buildings.iter().map(|b| &b.trained_on).collect();
+    lists.dedup();
+    let one = |l: &Vec<String>| {
+        let names: Vec<&str> = l.iter().map(String::as_str).collect();
+        format!(
+            "the {} training building{} {}",
+            count_words(l.len()),
+            if l.len() == 1 { "" } else { "s" },
+            and_list(&names)
+        )
+    };
+    match lists.as_slice() {
+        [l] => one(l),
+        _ => {
+            let per: Vec<String> = rep
+                .buildings
+                .iter()
+                .map(|b| format!("{} for {}", one(&b.trained_on), b.building))
+                .collect();
+            per.join("; ")
+        }
+    }
+}
+
+/// Which map set is which in an evaluation: the name each is reported under, its role,
+/// where it was read from, and why a name differs from its folder's.
+fn map_sets_section(ev: &Evaluation) -> String {
+    let mut s = String::from(
+        "## Map sets\n\n\
+         Your test maps and the training buildings, as named in this report. Every model \
+         is trained on the training sets only; the test sets are read for testing only.\n\n\
+         | Name in this report | Role | Read from | Maps | Note |\n|---|---|---|---|---|\n",
+    );
+    for m in &ev.sets {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {}`{}` | {} | {} |",
+            m.name,
+            match m.role {
+                SetRole::Test => "test",
+                SetRole::Training => "training",
+            },
+            if m.bundled {
+                "bundled COLD building, "
+            } else {
+                ""
+            },
+            m.source,
+            m.maps,
+            m.note.as_deref().unwrap_or("")
+        );
+    }
+    s.push('\n');
+    s
 }
 
 fn building_rows(rep: &Reproduction) -> Vec<Option<&str>> {
@@ -237,7 +316,7 @@ pub fn validation_markdown(vals: &[super::validate::Validation], seconds: f64) -
          having it.\n"
     );
     s.push_str(&option_summary(vals));
-    s.push_str(&validation_tables(vals, usize::MAX));
+    s.push_str(&validation_tables(vals, usize::MAX, None));
     s
 }
 
@@ -301,14 +380,24 @@ pub fn option_summary(vals: &[super::validate::Validation]) -> String {
     s
 }
 
-fn validation_tables(vals: &[super::validate::Validation], keep: usize) -> String {
+/// Every validation's candidates, best first (`keep` per model, and the worst).
+/// `shared`: the test sets one validation on fixed training buildings serves (an
+/// evaluation), named in its heading instead of the one it was run for.
+fn validation_tables(
+    vals: &[super::validate::Validation],
+    keep: usize,
+    shared: Option<&str>,
+) -> String {
     let mut s = String::new();
     for v in vals {
         let _ = writeln!(
             s,
-            "\nValidation for test building {} (folds: {}); mean accuracy in %, \
+            "\nValidation for {} (folds: {}); mean accuracy in %, \
              classification and placeholders pooled, per fold and mean; best first:\n",
-            v.test_building,
+            match shared {
+                Some(names) => format!("every test set ({names})"),
+                None => format!("test building {}", v.test_building),
+            },
             v.folds.join("; ")
         );
         let _ = writeln!(
@@ -382,7 +471,11 @@ fn settings_section(rep: &Reproduction) -> String {
         );
         s.push_str(&option_summary(&rep.validation));
     }
-    s.push_str(&validation_tables(&rep.validation, 5));
+    let tests: Option<String> = rep
+        .evaluation
+        .as_ref()
+        .map(|ev| and_list(&ev.names(SetRole::Test)));
+    s.push_str(&validation_tables(&rep.validation, 5, tests.as_deref()));
     s
 }
 
@@ -422,7 +515,13 @@ pub fn write_outputs(
         write(name, &roc_plot(rep, *set))?;
         figures.push(name.into());
     }
-    // Fig. 8- and Fig. 6-style panels for the first test map of each building.
+    // Fig. 8- and Fig. 6-style panels for the first test map of each building (an
+    // evaluation names them after what they show, not after the paper's figures).
+    let labels = if rep.evaluation.is_some() {
+        "labels"
+    } else {
+        "fig8"
+    };
     let fig_level = *cfg
         .levels
         .iter()
@@ -437,7 +536,7 @@ pub fn write_outputs(
         .unwrap_or(cfg.levels[0]);
     for setup in setups {
         let o = run_graph(setup, 0, fig_level, 0, Experiment::Classification, cfg)?;
-        let name = format!("fig8_{}.svg", setup.building);
+        let name = format!("{labels}_{}.svg", setup.building);
         write(&name, &fig8_panel(setup, &o, fig_level))?;
         figures.push(name);
         let o = run_graph(setup, 0, pie_level, 0, Experiment::Placeholders, cfg)?;
@@ -447,7 +546,7 @@ pub fn write_outputs(
     }
     write(
         "REPORT.md",
-        &report_markdown(rep, cfg, &figures, fig_level, pie_level, extra),
+        &report_markdown(rep, cfg, &figures, (fig_level, pie_level, labels), extra),
     )?;
     Ok(())
 }
@@ -456,24 +555,39 @@ fn report_markdown(
     rep: &Reproduction,
     cfg: &ReproduceConfig,
     figures: &[String],
-    fig_level: NoiseLevel,
-    pie_level: NoiseLevel,
+    (fig_level, pie_level, labels): (NoiseLevel, NoiseLevel, &str),
     extra: &str,
 ) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# Semantic-map models on the COLD maps: results\n");
+    // An evaluation speaks about the user's map sets: no comparison with the paper's
+    // figures, which belong to the paper's own COLD buildings.
+    let paper = rep.evaluation.is_none();
+    match &rep.evaluation {
+        None => {
+            let _ = writeln!(s, "# Semantic-map models on the COLD maps: results\n");
+        }
+        Some(ev) => {
+            let _ = writeln!(
+                s,
+                "# Evaluation of the semantic-map models on your maps: {}\n",
+                and_list(&ev.names(SetRole::Test))
+            );
+        }
+    }
     let _ = writeln!(
         s,
-        "Seed {}; {} test building(s); {} maps × {} rounds per building and level; \
+        "Seed {}; {} test building{}; {} maps × {} round{} per building and level; \
          evidence noise: {}. Run time {:.1} s.\n",
         rep.seed,
         rep.buildings.len(),
+        if rep.buildings.len() == 1 { "" } else { "s" },
         if cfg.maps_per_building == usize::MAX {
             "all".to_string()
         } else {
             cfg.maps_per_building.to_string()
         },
         cfg.rounds,
+        if cfg.rounds == 1 { "" } else { "s" },
         if rep.paper_noise {
             "**paper-effective** (wrong class drawn among all 10 classes, `--paper-noise`)"
         } else {
@@ -481,11 +595,24 @@ fn report_markdown(
         },
         rep.seconds
     );
+    if let Some(ev) = &rep.evaluation {
+        s.push_str(&map_sets_section(ev));
+    }
+    let chosen = if rep.validation.is_empty() {
+        "Every setting below was given (`--settings`: a saved validation, `graphspn \
+         validate`); no validation was run."
+            .to_string()
+    } else {
+        format!(
+            "Every setting below was chosen by leave-one-training-building-out validation \
+             on {} only; the test maps are never read by it (`graphspn validate`).",
+            training_wording(rep)
+        )
+    };
     let _ = writeln!(
         s,
         "## Models and their settings\n\n\
-         Every setting below was chosen by leave-one-training-building-out validation \
-         on the test building's two training buildings only (`graphspn validate`). \
+         {chosen} \
          The tree mixture is a mixture of edge-covering spanning trees of the map with \
          one learned pairwise potential, evaluated exactly (`treemix`). \
          The paper-style models are \"GraphSPN paper\" (`{}`: the paper's best 5 of 15 \
@@ -513,11 +640,17 @@ fn report_markdown(
     }
     let _ = writeln!(
         s,
-        "\n## Classification accuracy over all places (paper Fig. 5)\n\n\
+        "\n## Classification accuracy over all places{}\n\n\
          Mean over the test maps (each map's mean over its evidence rounds) with a \
-         map-level bootstrap 95% interval, in %. Paper: GraphSPN above 80% at every \
-         noise level and test building (read from Fig. 5; the text gives no exact \
-         values); MRF-2 good at low noise and deteriorating quickly; MRF-3 worse than MRF-2.\n"
+         map-level bootstrap 95% interval, in %.{}\n",
+        if paper { " (paper Fig. 5)" } else { "" },
+        if paper {
+            " Paper: GraphSPN above 80% at every \
+             noise level and test building (read from Fig. 5; the text gives no exact \
+             values); MRF-2 good at low noise and deteriorating quickly; MRF-3 worse than MRF-2."
+        } else {
+            ""
+        }
     );
     s.push_str(&accuracy_table(rep, Experiment::Classification, false));
     s.push_str(&paired_tables(rep, Experiment::Classification));
@@ -525,12 +658,18 @@ fn report_markdown(
     s.push_str(&bp_convergence(rep));
     let _ = writeln!(
         s,
-        "\n## Placeholders without evidence (paper Table 2)\n\n\
+        "\n## Placeholders without evidence{}\n\n\
          Accuracy over placeholders only (they get a uniform evidence row), mean over \
-         the test maps with at least one placeholder and bootstrap 95% interval, in %; \
-         the paper's numbers (NL2 and NL5 only) beside ours (its MRFs beside our paper-style MRFs).\n"
+         the test maps with at least one placeholder and bootstrap 95% interval, in %{}.\n",
+        if paper { " (paper Table 2)" } else { "" },
+        if paper {
+            "; the paper's numbers (NL2 and NL5 only) beside ours (its MRFs beside our \
+             paper-style MRFs)"
+        } else {
+            ""
+        }
     );
-    s.push_str(&accuracy_table(rep, Experiment::Placeholders, true));
+    s.push_str(&accuracy_table(rep, Experiment::Placeholders, paper));
     s.push_str(&paired_tables(rep, Experiment::Placeholders));
     s.push_str(&ceiling_section(rep));
     if !rep.auc.is_empty() {
@@ -543,22 +682,27 @@ fn report_markdown(
         let originals = rep.novelty.iter().filter(|n| n.is_original()).count();
         let _ = writeln!(
             s,
-            "\n## Novelty detection (paper Fig. 7)\n\n\
+            "\n## Novelty detection{}\n\n\
              Per-variable log-likelihood of the labelled test maps (no evidence); a low \
              score flags novelty. Two sets of labellings, each scored with the original \
              labellings ({} maps):\n\n\
              - the paper's: {} novel (CR↔DW and CR↔1PO over the whole map) and {} not \
              (1PO↔2PO), plus the originals;\n\
              - local (harder): the same swaps inside one connected region of a quarter of \
-             the places, {} regions per swap and map: {} novel and {} not, plus the originals.\n\n\
-             The paper reports ROC curves only (all three models good, MRFs slightly better \
-             than GraphSPN).\n",
+             the places, {} regions per swap and map: {} novel and {} not, plus the originals.\n{}",
+            if paper { " (paper Fig. 7)" } else { "" },
             originals,
             count(NoveltySet::Paper, true),
             count(NoveltySet::Paper, false) - originals,
             LOCAL_REGIONS,
             count(NoveltySet::Local, true),
             count(NoveltySet::Local, false),
+            if paper {
+                "\nThe paper reports ROC curves only (all three models good, MRFs slightly \
+                 better than GraphSPN).\n"
+            } else {
+                ""
+            }
         );
         let _ = writeln!(
             s,
@@ -638,7 +782,7 @@ fn report_markdown(
             s.push('\n');
         }
     }
-    if !rep.table1.is_empty() {
+    if !rep.table1.is_empty() && paper {
         let _ = writeln!(
             s,
             "\n## Evidence statistics (paper Table 1)\n\n\
@@ -654,6 +798,21 @@ fn report_markdown(
                 p.1.0, p.1.1, p.2.0, p.2.1
             );
         }
+    } else if !rep.table1.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## Evidence statistics\n\n\
+             The evidence simulated on the test maps' ground truth, {} rounds per map \
+             (mean ± standard deviation): D_groundtruth, over the places with correct \
+             evidence, the true class's value minus the highest other one; D_incorrect, \
+             over the places with wrong evidence, the highest value minus the true \
+             class's.\n\n\
+             | NL | D_groundtruth | D_incorrect |\n|---|---|---|",
+            cfg.rounds
+        );
+        for &(l, gm, gs, im, is) in &rep.table1 {
+            let _ = writeln!(s, "| {l} | {gm:.3} ± {gs:.3} | {im:.3} ± {is:.3} |");
+        }
     }
     let _ = writeln!(s, "\n## Figures\n");
     let _ = writeln!(
@@ -662,7 +821,7 @@ fn report_markdown(
          dashed: paper-style; grey dashed: evidence only; bars: map-level bootstrap 95% \
          intervals). `roc.svg`, `roc_local.svg`: novelty-detection ROC of the paper's \
          and of the local swaps. \
-         `fig8_*.svg`: first test map at {fig_level} (ground truth; places whose \
+         `{labels}_*.svg`: first test map at {fig_level} (ground truth; places whose \
          evidence argmax is wrong in black; the tree mixture's, GraphSPN's and MRF-2's \
          labels). `placeholders_*.svg`: the tree mixture's and GraphSPN's marginals of \
          the placeholders (pies) at {pie_level}, explored places in their true class, \
@@ -670,6 +829,11 @@ fn report_markdown(
     );
     for f in figures {
         let _ = writeln!(s, "- [{f}]({f})");
+    }
+    // The check of the generated code (`graphspn reproduce` passes it in `extra`);
+    // without it the section would have nothing to say, so it is left out.
+    if extra.trim().is_empty() {
+        return s;
     }
     let _ = writeln!(
         s,
@@ -679,8 +843,7 @@ fn report_markdown(
          1e-9), the tree mixture's from its exact host evaluator (`TreeInstance`, tested \
          against brute force and the interpreter on its explicit SPN): each test map gets a model trained on the other buildings, so no \
          test map is a fixed, compiled one. The generated code applies to a map known at \
-         build time; the check below (written by `graphspn reproduce`, empty when the \
-         library is called directly) compares it with the interpreter on such a map.\n"
+         build time; the check below compares it with the interpreter on such a map.\n"
     );
     s.push_str(extra);
     s

@@ -210,6 +210,11 @@ pub struct Reproduction {
     pub table1: Vec<(u8, f64, f64, f64, f64)>,
     /// Wall-clock seconds of the whole run (filled by the caller).
     pub seconds: f64,
+    /// For an evaluation of a user's map sets (`graphspn evaluate`, filled by the
+    /// caller): which set is which. `None` for a reproduction on the COLD buildings;
+    /// the report then compares with the paper.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub evaluation: Option<super::sets::Evaluation>,
 }
 
 /// A trained test setup for one building.
@@ -864,6 +869,7 @@ pub fn run(
         within_map: within,
         table1,
         seconds: 0.0,
+        evaluation: None,
     };
     Ok((rep, setups))
 }
