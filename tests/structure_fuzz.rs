@@ -39,12 +39,20 @@ fn random_template(rng: &mut ChaCha8Rng, name: String, k: usize) -> Template {
     Template::custom(name, k, &edges).expect("a connected template")
 }
 
-/// A random template SPN: half the time a layered SPN (per-node code), half the
-/// time a dense region structure with random sizes (block kernels in SIMD lane
-/// groups); either way with some sum weights set to exactly 0 (one positive kept;
-/// weights renormalised, as the interpreter requires), sometimes very skewed.
+/// A random template SPN: a quarter of the time a layered SPN whose sums miss a
+/// product each (no full cartesian segments, so no block structure) with positive
+/// weights (per-node code in linear space); otherwise a layered SPN (per-node code) or,
+/// half the time, a dense region structure with random sizes (block kernels in SIMD
+/// lane groups), with some sum weights set to exactly 0 (one positive kept; weights
+/// renormalised, as the interpreter requires), sometimes very skewed.
 fn random_template_spn(rng: &mut ChaCha8Rng, vars: usize, classes: u32) -> Spn {
-    let mut spn = if rng.random_bool(0.5) {
+    let (layered, irregular) = (rng.random_bool(0.5), rng.random_bool(0.5));
+    let mut spn = if layered && irregular {
+        // Regions of two or more sums, positive weights: per-node linear code.
+        let mut spn = layered_spn(rng.random(), vars, classes, rng.random_range(2..=3));
+        drop_a_product(rng, &mut spn);
+        spn
+    } else if layered {
         layered_spn(rng.random(), vars, classes, rng.random_range(1..=3))
     } else if vars == 1 {
         uniform_spn(1, classes).expect("a one-variable SPN")
@@ -65,8 +73,13 @@ fn random_template_spn(rng: &mut ChaCha8Rng, vars: usize, classes: u32) -> Spn {
                 .for_each(|w| *w = rng.random_range(0.05..1.0));
         }
     }
-    let zero_p = if rng.random_bool(0.5) { 0.25 } else { 0.0 };
-    let skew = rng.random_bool(0.3);
+    let plain = layered && irregular;
+    let zero_p = if !plain && rng.random_bool(0.5) {
+        0.25
+    } else {
+        0.0
+    };
+    let skew = !plain && rng.random_bool(0.3);
     for node in spn.nodes.iter_mut() {
         if let Node::Sum { weights, .. } = node {
             let keep = rng.random_range(0..weights.len());
@@ -83,6 +96,37 @@ fn random_template_spn(rng: &mut ChaCha8Rng, vars: usize, classes: u32) -> Spn {
         }
     }
     spn
+}
+
+/// Removes one product child (and its weight) from sums that have at least three,
+/// never a product's last parent (so every node stays reachable): the SPN stays
+/// complete and decomposable, but those sums no longer hold every tuple of a cartesian
+/// product, which the block recogniser requires.
+fn drop_a_product(rng: &mut ChaCha8Rng, spn: &mut Spn) {
+    let mut parents = vec![0usize; spn.nodes.len()];
+    for node in &spn.nodes {
+        if let Node::Sum { children, .. } = node {
+            children.iter().for_each(|&c| parents[c as usize] += 1);
+        }
+    }
+    let products: Vec<bool> = spn
+        .nodes
+        .iter()
+        .map(|n| matches!(n, Node::Product { .. }))
+        .collect();
+    for node in spn.nodes.iter_mut() {
+        if let Node::Sum { children, weights } = node {
+            let droppable: Vec<usize> = (0..children.len())
+                .filter(|&i| products[children[i] as usize] && parents[children[i] as usize] > 1)
+                .collect();
+            if children.len() >= 3 && !droppable.is_empty() {
+                let i = droppable[rng.random_range(0..droppable.len())];
+                parents[children[i] as usize] -= 1;
+                children.remove(i);
+                weights.remove(i);
+            }
+        }
+    }
 }
 
 fn random_case(seed: u64, vectors: usize) -> Case {
@@ -148,6 +192,27 @@ fn random_case(seed: u64, vectors: usize) -> Case {
     }
 }
 
+/// Templates compiled on each code path, over the generated modules: `[block code,
+/// per-node linear, per-node log]`. A per-node template's forward function takes
+/// scalar rows (`_fwd(x: &[[f32; ...`); in log space it starts by taking the rows'
+/// logs (`ln_rows_*`).
+fn code_paths(modules: &[(String, String)]) -> [usize; 3] {
+    let mut paths = [0; 3];
+    for (_, src) in modules {
+        paths[0] += src.matches("_fwd(x: &[[V;").count();
+        for (i, _) in src.match_indices("_fwd(x: &[[f") {
+            let body = &src[i..];
+            let end = body[1..].find("#[inline").map_or(body.len(), |e| e + 1);
+            if body[..end].contains("ln_rows_") {
+                paths[2] += 1;
+            } else {
+                paths[1] += 1;
+            }
+        }
+    }
+    paths
+}
+
 #[test]
 fn random_structures_match_interpreter() {
     let total = env_usize("GRAPHSPN_FUZZ_STRUCTURES", STRUCTURES);
@@ -156,21 +221,22 @@ fn random_structures_match_interpreter() {
     for batch in seeds.chunks(BATCH) {
         let cases: Vec<Case> = batch.iter().map(|&s| random_case(s, vectors)).collect();
         let modules = differential("structure_fuzz", &cases);
-        // The batch must exercise both code paths of the generator: floor + sparse
-        // block code (dense templates in linear space) and per-node code.
-        let count = |marker: &str| {
-            modules
-                .iter()
-                .filter(|(_, src)| src.contains(marker))
-                .count()
-        };
-        let (lanes, per_node) = (count("_fwd(x: &[[V;"), count("_fwd(x: &[[f"));
+        // The batch must exercise every code path of the generator: floor + sparse
+        // block code (dense templates in linear space), per-node code in linear space
+        // and per-node code in log space (exact zeros or tiny values).
+        let paths = code_paths(&modules);
         eprintln!(
-            "of {} structures, {lanes} use block code and {per_node} per-node code",
-            modules.len()
+            "of {} structures' templates: {} use block code, {} per-node linear code, {} per-node log code",
+            modules.len(),
+            paths[0],
+            paths[1],
+            paths[2]
         );
         if modules.len() >= 8 {
-            assert!(lanes > 0 && per_node > 0, "one code path is not fuzzed");
+            assert!(
+                paths.iter().all(|&n| n > 0),
+                "a code path is not fuzzed: {paths:?}"
+            );
         }
     }
 }

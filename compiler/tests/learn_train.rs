@@ -358,3 +358,62 @@ fn progress_is_plain_lines_off_terminal() {
     assert!(matches!(Progress::Auto.bar(10, "training"), Bar::Lines(_)));
     assert!(matches!(Progress::Hidden.bar(10, "training"), Bar::Hidden));
 }
+
+/// Tied EM has a closed-form reference: with the structure invariant under the group
+/// and tied initial weights, tied soft EM on the data equals untied soft EM on the data
+/// augmented with every automorphic image (`|G|` times the samples, `|G|` times the
+/// smoothing): an edge's augmented count is `|G|` times its orbit's mean count. Checked
+/// on the Star template (24 automorphisms) after several epochs; a tied M-step that
+/// summed instead of averaging, or smoothed per orbit, would fail. (Hard EM breaks
+/// symmetric ties in its max-product paths, so only soft EM has this identity.)
+#[test]
+fn tied_em_equals_untied_em_on_the_augmented_data() {
+    let (vars, classes) = (5usize, 3u32);
+    let group = star_group();
+    let table = mixture_table(vars, classes as u16, 2, 17);
+    let samples = sample_table(&table, vars, classes as u16, 400, 17);
+    let p = DenseParams {
+        split_choice: graphspn_compiler::learn::SplitChoice::FewestImages,
+        ..DenseParams::default()
+    };
+    let start = symmetric_dense_structure(vars, classes, &p, &group, 5).unwrap();
+    let orbits = edge_orbits(&start, &group).unwrap();
+    assert!(!orbits.is_trivial());
+    let settings = TrainingSettings {
+        epochs: 4,
+        em: EmKind::Soft,
+        smoothing_start: 3.0,
+        smoothing_end: 0.5,
+        ..TrainingSettings::default()
+    };
+    let mut tied = start.clone();
+    train_tied(&mut tied, &samples, &settings, &orbits, Progress::Hidden).unwrap();
+    let images: Vec<Vec<u16>> = samples
+        .iter()
+        .flat_map(|x| group.iter().map(|g| g.iter().map(|&i| x[i]).collect()))
+        .collect();
+    let k = group.len() as f64;
+    let scaled = TrainingSettings {
+        smoothing_start: settings.smoothing_start * k,
+        smoothing_end: settings.smoothing_end * k,
+        ..settings.clone()
+    };
+    let mut untied = start.clone();
+    train(&mut untied, &images, &scaled, Progress::Hidden).unwrap();
+    let (mut worst, mut moved) = (0.0f64, 0.0f64);
+    for ((a, b), s) in tied.nodes.iter().zip(&untied.nodes).zip(&start.nodes) {
+        if let (
+            Node::Sum { weights: wa, .. },
+            Node::Sum { weights: wb, .. },
+            Node::Sum { weights: ws, .. },
+        ) = (a, b, s)
+        {
+            for ((x, y), z) in wa.iter().zip(wb).zip(ws) {
+                worst = worst.max((x - y).abs());
+                moved = moved.max((x - z).abs());
+            }
+        }
+    }
+    assert!(moved > 1e-3, "training moved no weight ({moved})");
+    assert!(worst < 1e-10, "tied vs untied on augmented data: {worst}");
+}

@@ -308,3 +308,32 @@ fn invalid_inputs_are_rejected() {
         Err(MrfError::Contradiction { .. })
     ));
 }
+
+/// Damping is pinned to its documented form: one parallel sweep on a single pairwise
+/// factor `ψ` over two binary variables (the message into variable 1 starts uniform and
+/// its update is `ψ`'s normalised column sums `u`) leaves variable 1's belief at `(1 −
+/// d)·u + d·(½, ½)`; swapping `d` and `1 − d`, or dropping the old message, fails.
+#[test]
+fn damping_mixes_the_update_with_the_old_message_as_documented() {
+    let mut fg = FactorGraph::new(vec![2, 2]).unwrap();
+    // Column sums 1.6 and 0.4: u = (0.8, 0.2).
+    fg.add_factor(vec![0, 1], vec![0.9, 0.1, 0.7, 0.3]).unwrap();
+    for d in [0.0, 0.3, 0.6] {
+        let r = loopy_bp(
+            &fg,
+            &BpOptions {
+                damping: d,
+                max_iterations: 1,
+                schedule: Schedule::Parallel,
+                ..BpOptions::default()
+            },
+        )
+        .unwrap();
+        let want = [(1.0 - d) * 0.8 + d * 0.5, (1.0 - d) * 0.2 + d * 0.5];
+        let got = &r.marginals[1];
+        assert!(
+            (got[0] - want[0]).abs() < 1e-12 && (got[1] - want[1]).abs() < 1e-12,
+            "damping {d}: {got:?} vs {want:?}"
+        );
+    }
+}

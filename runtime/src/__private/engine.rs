@@ -490,6 +490,7 @@ pub fn check_rows<T: Real, const N: usize, const C: usize>(
 }
 
 /// Validates one row of evidence for place `p` (finite, `≥ 0`, some mass).
+#[inline(always)]
 pub fn check_row<T: Real, const C: usize>(
     row: &[T; C],
     place: usize,
