@@ -10,7 +10,7 @@
 //!   there);
 //! - 10^6 random observations: at checkpoints every fused row agrees with the log-domain
 //!   reference (no drift), every entry is 0 or a normal `f32` (no subnormals), no class
-//!   the reference keeps within `2^-72` of the best is 0 (nothing locked), the marginals
+//!   the reference keeps above the family's flush threshold is 0 (nothing locked), the marginals
 //!   agree with the stateless functions on the reference rows and on the state's rows,
 //!   and the log-likelihood equals the stateless log-likelihood of the product of the
 //!   observations (the reference rows' plus `γ · Σ_p max_c ln Π α`).
@@ -67,12 +67,19 @@ fn check<M: CompiledMap<Scalar = f32>>(s: &mut M::State, exact: &LogRows, tag: &
         for (k, (&x, &r)) in row.iter().zip(&rel).enumerate() {
             let at = format!("{tag}: place {p} class {k}: state {x:e}, exact ln {r}");
             assert!(x == 0.0 || x >= f32::MIN_POSITIVE, "subnormal: {at}");
-            // Classes below 2^-80 (ln −55.5) of the best are 0 in the row the
-            // inference reads (and kept exactly in the state).
-            if r > -50.0 {
+            // Classes below 2^flush of the best are 0 in the row the inference reads
+            // (and kept exactly in the state): 2^-24 for GraphSPN templates (products
+            // of five entries stay normal), 2^-80 for tree mixtures.
+            let flush = if M::MODEL_FAMILY == "graphspn" {
+                24.0
+            } else {
+                80.0
+            };
+            let flush = -flush * std::f64::consts::LN_2;
+            if r > flush + 1.0 {
                 assert!(x > 0.0, "flushed or locked: {at}");
                 assert!((f64::from(x / t).ln() - r).abs() < 1e-3, "drift: {at}");
-            } else if r < -60.0 {
+            } else if r < flush - 1.0 {
                 assert_eq!(x, 0.0, "{at}");
             }
         }

@@ -21,9 +21,13 @@
 //!
 //! The row that inference reads ([`Fused::observe`]'s second result) is `mantissa ·
 //! 2^-deficit`: the product scaled by the power of two `2^-top`, largest entry in
-//! `[1, 2)`, exact, with classes below `2^TINY_EXP` (`2^-80` in `f32`) set to 0 so no
-//! kernel ever sees a subnormal (such a class changes a likelihood by less than `C ·
-//! 2^-80` relatively, far below `f32` rounding). The log-likelihood of the fused evidence
+//! `[1, 2)`, exact, with classes below `2^flush` of the best set to 0 (the model family
+//! chooses `flush`: [`Real::PRODUCT_FLUSH_EXP`] for GraphSPN templates, which multiply
+//! up to five evidence entries, so their products stay normal — subnormal products cost
+//! a step 20% on x86 after 10^6 observations; [`Real::TINY_EXP`] for tree mixtures, whose
+//! `φ` flushes at least as much). Such a class changes a place's likelihood by less than
+//! `C · 2^flush` relatively; it changes a result only where the model's odds for it
+//! exceed `2^-flush` against the evidence. The log-likelihood of the fused evidence
 //! is the inference's log-likelihood of those rows plus [`ln_shift`] (`γ · ln 2 · Σ top`
 //! over observed places, for a model that raises rows to the power `γ`).
 
@@ -86,9 +90,10 @@ impl<T: Real, const C: usize> Fused<T, C> {
     }
 
     /// The product of this evidence and `row` (exact up to one rounding per class), and
-    /// the row inference reads for it (see the module docs); `None` when no class keeps
-    /// any mass. `row` must be checked (finite, `≥ 0`) by the caller.
-    pub fn observe(&self, row: &[T; C]) -> Option<(Self, [T; C])> {
+    /// the row inference reads for it (classes below `2^flush` of the best read as 0; see
+    /// the module docs); `None` when no class keeps any mass. `row` must be checked
+    /// (finite, `≥ 0`) by the caller; `flush` is negative.
+    pub fn observe(&self, row: &[T; C], flush: i32) -> Option<(Self, [T; C])> {
         let mut mant = [T::ZERO; C];
         let mut ex = [0i32; C];
         let mut best = i32::MIN;
@@ -117,16 +122,16 @@ impl<T: Real, const C: usize> Fused<T, C> {
             top,
             shift: top,
         };
-        Some((fused, fused.row()))
+        Some((fused, fused.row(flush)))
     }
 
     /// `mantissa · 2^-deficit` per class (exact; largest entry in `[1, 2)`), classes
-    /// below `2^TINY_EXP` set to 0.
-    fn row(&self) -> [T; C] {
+    /// below `2^flush` set to 0.
+    fn row(&self, flush: i32) -> [T; C] {
         let mut r = [T::ZERO; C];
         for ((o, &m), &d) in r.iter_mut().zip(&self.mant).zip(&self.deficit) {
             let d = i32::from(d);
-            if d <= -T::TINY_EXP {
+            if d <= -flush {
                 *o = m * T::pow2(-d);
             }
         }
@@ -183,7 +188,7 @@ mod tests {
         let mut f = Fused::<f32, 3>::ONES;
         let mut want = [0.0f64; 3];
         for _ in 0..5_000 {
-            f = f.observe(&row).unwrap().0;
+            f = f.observe(&row, f32::TINY_EXP).unwrap().0;
             for (w, &a) in want.iter_mut().zip(&row) {
                 *w += f64::from(a).ln();
             }
@@ -191,7 +196,7 @@ mod tests {
         for (g, w) in ln_product(&f).iter().zip(&want) {
             assert!((g - w).abs() <= 1e-6 * w.abs(), "{g} vs {w}");
         }
-        let (_, r) = f.observe(&[1.0; 3]).unwrap();
+        let (_, r) = f.observe(&[1.0; 3], f32::TINY_EXP).unwrap();
         assert!((1.0..2.0).contains(&r[0]), "{r:?}");
         assert_eq!(
             r[1], 0.0,
@@ -203,12 +208,12 @@ mod tests {
     fn a_class_far_behind_recovers_exactly() {
         let mut f = Fused::<f32, 3>::ONES;
         for _ in 0..300 {
-            f = f.observe(&[0.9, 0.011, 0.011]).unwrap().0;
+            f = f.observe(&[0.9, 0.011, 0.011], f32::TINY_EXP).unwrap().0;
         }
         for _ in 0..400 {
-            f = f.observe(&[0.011, 0.9, 0.011]).unwrap().0;
+            f = f.observe(&[0.011, 0.9, 0.011], f32::TINY_EXP).unwrap().0;
         }
-        let (_, r) = f.observe(&[1.0; 3]).unwrap();
+        let (_, r) = f.observe(&[1.0; 3], f32::TINY_EXP).unwrap();
         assert_eq!(r[1].split().1, 0, "class 1 is the best: {r:?}");
         assert_eq!(r[0], 0.0);
         let l = ln_product(&f);
@@ -221,21 +226,24 @@ mod tests {
         let mut f = [Fused::<f32, 3>::ONES; 2];
         f[0] = Fused::of(&[4.0, 2.0, 1.0]);
         assert_eq!(ln_shift(&f, 1), 0.0, "a row kept as given has no shift");
-        let (g, r) = f[0].observe(&[0.25, 0.25, 0.25]).unwrap();
+        let (g, r) = f[0].observe(&[0.25, 0.25, 0.25], f32::TINY_EXP).unwrap();
         assert_eq!(r, [1.0, 0.5, 0.25]);
         f[0] = g;
         assert_eq!(ln_shift(&f, 1), 0.0, "4 · 0.25 = 1: nothing dropped");
-        let (g, _) = f[1].observe(&[0.125, 0.0, 0.0]).unwrap();
+        let (g, _) = f[1].observe(&[0.125, 0.0, 0.0], f32::TINY_EXP).unwrap();
         f[1] = g;
         assert!((ln_shift(&f, 1) - 0.125f32.ln()).abs() < 1e-6);
-        assert!(f[1].observe(&[0.0, 1.0, 1.0]).is_none(), "no class left");
+        assert!(
+            f[1].observe(&[0.0, 1.0, 1.0], f32::TINY_EXP).is_none(),
+            "no class left"
+        );
     }
 
     #[test]
     fn deficits_saturate_towards_recovering_sooner() {
         let mut f = Fused::<f32, 2>::ONES;
         for _ in 0..700 {
-            f = f.observe(&[1.0, 1e-30]).unwrap().0;
+            f = f.observe(&[1.0, 1e-30], f32::TINY_EXP).unwrap().0;
         }
         assert_eq!(f.deficit[1], u16::MAX);
         assert_eq!(f.top, 0);

@@ -328,12 +328,17 @@ pub trait Real:
     const TINY_EXP: i32;
     /// Binary exponent of the smallest normal value (`-126` for `f32`, `-1022` for `f64`).
     const MIN_EXP: i32;
+    /// Binary exponent below which a GraphSPN state's fused evidence reads as 0 relative
+    /// to the place's best class (`-24` for `f32`, `-200` for `f64`): a template multiplies
+    /// up to five evidence entries, and five such factors stay in the normal range.
+    const PRODUCT_FLUSH_EXP: i32;
 }
 
 macro_rules! real_impl {
-    ($t:ident, $bits:ident, $mant:expr, $bias:expr, $emask:expr, $ln:path, $exp:path, $tiny:expr) => {
+    ($t:ident, $bits:ident, $mant:expr, $bias:expr, $emask:expr, $ln:path, $exp:path, $tiny:expr, $product:expr) => {
         impl Real for $t {
             const TINY_EXP: i32 = $tiny;
+            const PRODUCT_FLUSH_EXP: i32 = $product;
             const MIN_EXP: i32 = 1 - $bias;
             #[inline(always)]
             fn pow2(e: i32) -> $t {
@@ -400,8 +405,8 @@ macro_rules! real_impl {
     };
 }
 
-real_impl!(f32, u32, 23, 127, 0xff, libm::logf, libm::expf, -80);
-real_impl!(f64, u64, 52, 1023, 0x7ff, libm::log, libm::exp, -600);
+real_impl!(f32, u32, 23, 127, 0xff, libm::logf, libm::expf, -80, -24);
+real_impl!(f64, u64, 52, 1023, 0x7ff, libm::log, libm::exp, -600, -200);
 
 /// The scaled rows of places `p` (see `prep_f32`): `x = α/max α`, or the one-hot row of
 /// the place's label when it is `< C`. Out-of-range places give zero rows.

@@ -35,7 +35,9 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
 
             /// The current evidence rows (all ones where a place has none; a row fused by
             /// `observe` is the product of the place's observations scaled by a power of two,
-            /// largest entry in `[1, 2)`, classes below `2^-80` of it (`f32`) set to 0).
+            /// largest entry in `[1, 2)`, classes below `2^-24` of it (`f32`; `2^-200` in `f64`)
+            /// set to 0: a GraphSPN template multiplies up to five entries, whose products
+            /// must stay normal).
             pub fn evidence(&self) -> &Evidence {
                 if self.ready { &self.ev } else { &NO_EVIDENCE }
             }
@@ -206,7 +208,7 @@ fn update_methods(cx: &Context) -> TokenStream {
                 Some(f) => *f,
                 None => #rt::Fused::ONES,
             };
-            match old.observe(row) {
+            match old.observe(row, <#t as #rt::Real>::PRODUCT_FLUSH_EXP) {
                 Some((f, r)) => {
                     self.store(place, r, f);
                     Ok(())

@@ -209,10 +209,12 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         let Some(old) = self.fused.get(place) else {
             return Ok(());
         };
-        let (fused, fused_row) = old.observe(row).ok_or(EvidenceError::NoMass {
-            place,
-            place_id: u64::from(id),
-        })?;
+        let (fused, fused_row) =
+            old.observe(row, V::Scalar::TINY_EXP)
+                .ok_or(EvidenceError::NoMass {
+                    place,
+                    place_id: u64::from(id),
+                })?;
         self.store(m, place, fused_row, fused);
         Ok(())
     }
