@@ -58,6 +58,24 @@ fn quick_reproduction_on_cold() {
         !report.contains("Map sets"),
         "no evaluation record in a reproduction"
     );
+    // The ceiling table has one column per model and level, also with one level (it
+    // repeated its columns then: "NL2 ... NL2").
+    let head = |report: &str| -> String {
+        let at = report
+            .find("| Test building | placeholders | oracle")
+            .expect("ceiling table");
+        report[at..].lines().next().unwrap().to_string()
+    };
+    assert_eq!(head(&report).matches(" | ").count(), 8, "{}", head(&report));
+    let mut single = rep.clone();
+    let lowest = single.graphs.iter().map(|g| g.level).min().unwrap();
+    single.graphs.retain(|g| g.level == lowest);
+    let one = tempfile::tempdir().unwrap();
+    write_outputs(&single, &setups, &cfg, one.path(), "").expect("write outputs");
+    let report1 = std::fs::read_to_string(one.path().join("REPORT.md")).unwrap();
+    let h = head(&report1);
+    assert_eq!(h.matches(" | ").count(), 6, "{h}");
+    assert_eq!(h.matches(&format!("NL{lowest}")).count(), 3, "{h}");
     let json = std::fs::read_to_string(out.path().join("results.json")).unwrap();
     let parsed: Reproduction = serde_json::from_str(&json).expect("results.json parses");
     // 1 building × 2 maps × 2 levels × 1 round × 2 experiments.
