@@ -337,3 +337,30 @@ fn damping_mixes_the_update_with_the_old_message_as_documented() {
         );
     }
 }
+
+/// Messages far below `f64`'s range take the log path even when no potential is
+/// extreme: variable 0's evidence (three factors of `1e-110`) leaves its state 1 at
+/// `1e-330`, below the smallest `f64`, yet an identity factor and variable 1's hard
+/// evidence make state 1 the only consistent one. Linear-space messages would round it
+/// to 0 and report a contradiction.
+#[test]
+fn messages_below_the_f64_range_take_the_log_path() {
+    let mut fg = FactorGraph::new(vec![2, 2]).unwrap();
+    for _ in 0..3 {
+        fg.add_factor(vec![0], vec![1.0, 1e-110]).unwrap();
+    }
+    fg.add_factor(vec![0, 1], vec![1.0, 0.0, 0.0, 1.0]).unwrap();
+    fg.add_factor(vec![1], vec![0.0, 1.0]).unwrap();
+    for schedule in [Schedule::Parallel, Schedule::Sequential] {
+        let bp = loopy_bp(
+            &fg,
+            &BpOptions {
+                schedule,
+                ..BpOptions::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("{schedule:?}: {e}"));
+        assert_eq!(bp.marginals[0], vec![0.0, 1.0], "{schedule:?}");
+        assert_eq!(bp.marginals[1], vec![0.0, 1.0], "{schedule:?}");
+    }
+}

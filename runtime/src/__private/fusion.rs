@@ -233,6 +233,8 @@ mod tests {
         let (g, _) = f[1].observe(&[0.125, 0.0, 0.0], f32::TINY_EXP).unwrap();
         f[1] = g;
         assert!((ln_shift(&f, 1) - 0.125f32.ln()).abs() < 1e-6);
+        // Rows entering as `α^3`: three times the dropped scale.
+        assert!((ln_shift(&f, 3) - 3.0 * 0.125f32.ln()).abs() < 1e-5);
         assert!(
             f[1].observe(&[0.0, 1.0, 1.0], f32::TINY_EXP).is_none(),
             "no class left"
