@@ -364,3 +364,26 @@ fn messages_below_the_f64_range_take_the_log_path() {
         assert_eq!(bp.marginals[1], vec![0.0, 1.0], "{schedule:?}");
     }
 }
+
+/// A factor whose message has no positive entry is reported as a contradiction naming
+/// the factor (not turned into NaN messages): variable 1 must be in state 0, where the
+/// factor gives variable 0 no weight at all.
+#[test]
+fn a_message_with_no_mass_is_a_contradiction() {
+    let mut fg = FactorGraph::new(vec![2, 2]).unwrap();
+    fg.add_factor(vec![1], vec![1.0, 0.0]).unwrap();
+    fg.add_factor(vec![0, 1], vec![0.0, 1.0, 0.0, 1.0]).unwrap();
+    for schedule in [Schedule::Parallel, Schedule::Sequential] {
+        let r = loopy_bp(
+            &fg,
+            &BpOptions {
+                schedule,
+                ..BpOptions::default()
+            },
+        );
+        assert!(
+            matches!(r, Err(MrfError::Contradiction { .. })),
+            "{schedule:?}: {r:?}"
+        );
+    }
+}
