@@ -30,16 +30,16 @@ pub struct MrfSetting {
     pub bp: BpOptions,
 }
 
+/// The evidence exponent of a GraphSPN or MRF setting: finite, in `(0, MAX_ROW_EXPONENT]`.
+fn evidence_exponent_in_domain(x: f64) -> Result<(), DomainError> {
+    domain::left_open("evidence_exponent", x, 0.0, MAX_ROW_EXPONENT)
+}
+
 impl MrfSetting {
     /// Every numeric setting against its documented domain.
     pub fn check(&self) -> Result<(), DomainError> {
         self.potentials.check().map_err(|e| e.under("potentials"))?;
-        domain::left_open(
-            "evidence_exponent",
-            self.evidence_exponent,
-            0.0,
-            MAX_ROW_EXPONENT,
-        )?;
+        evidence_exponent_in_domain(self.evidence_exponent)?;
         self.bp.check().map_err(|e| e.under("bp"))
     }
 
@@ -189,12 +189,7 @@ impl GraphSpnSetting {
     /// Every numeric setting against its documented domain.
     pub fn check(&self) -> Result<(), DomainError> {
         self.training.check().map_err(|e| e.under("training"))?;
-        domain::left_open(
-            "evidence_exponent",
-            self.evidence_exponent,
-            0.0,
-            MAX_ROW_EXPONENT,
-        )?;
+        evidence_exponent_in_domain(self.evidence_exponent)?;
         self.decompositions
             .check()
             .map_err(|e| e.under("decompositions"))?;
