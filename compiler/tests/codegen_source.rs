@@ -166,6 +166,20 @@ fn dense_structures_use_kernels_and_stay_small() {
             !src.contains("let n1 = x[0]"),
             "per-node fallback used for a dense template"
         );
+        // Lane operations go through the trait: in scalar code `V` is `f32`, whose own
+        // `max` is the `fmaxf` library call on Cortex-M4F and whose own `mul_add` (std)
+        // a fused multiply-add.
+        let scalar = CodegenOptions {
+            vectorisation: Vectorisation::Scalar,
+            ..Default::default()
+        };
+        let src = generate(&m, &g, &decs, &scalar).unwrap();
+        for k in ["Lanes::max(", "Lanes::mul_add("] {
+            assert!(src.contains(k), "no {k} in the generated code");
+        }
+        for k in [".max(", ".mul_add("] {
+            assert!(!src.contains(k), "{k} in the generated code");
+        }
         // Weights dominate: a few hundred bytes of text per weight above its row's
         // floor (every one of these random weights) plus a small constant.
         let weights: usize = m

@@ -15,6 +15,17 @@
 //! tuple. The backward sweep (adjoints, for local posteriors) has the same form, and
 //! the max-product value is `max(f·(max a)(max b)(max c), max_{t: w > f} w·x_t)`.
 //!
+//! The terms of a row that share one input's index are grouped ([`Groups`]):
+//! `Σ_j d_ij·a[i]·b[j]` over a group is `a[i]·q_i` with `q_i = Σ_j d_ij·b[j]`, one
+//! multiply-add per term and one per group instead of a product and a multiply-add per
+//! term; the backward sweep reuses `q_i` as the adjoint of `a[i]` (−10% instructions for
+//! the log-likelihood, −18% for the marginals on Cortex-M4F at 230 places).
+//!
+//! Lane operations are called through the trait (`Lanes::max`, `Lanes::mul_add`): in a
+//! scalar module `V` is `f32`, whose inherent `max` is the NaN-aware `fmaxf` library
+//! call on Cortex-M4F (it cost MPE 40% of its instructions) and whose inherent
+//! `mul_add` (std) is a fused multiply-add, a library call on x86-64 without FMA.
+//!
 //! Every statement has constant indices (no bounds checks, no loops); the functions
 //! are generic in the lane vector `V` of the module (`f32`/`f64` on targets without
 //! float SIMD, one component per call; 8 or 4 SIMD lanes on the host). MPE
@@ -28,12 +39,15 @@ use quote::{ToTokens, format_ident, quote};
 use super::emit::{Lit, int, join, rt};
 use super::kernels::{Plan, Segment};
 
+/// An above-floor term of a row: `(tuple index, weight − floor, weight)`.
+type Term = (usize, f64, f64);
+
 /// One row of a segment in floor + sparse form.
 struct Row {
     /// The smallest weight of the row.
     floor: f64,
     /// `(tuple index, weight − floor, weight)` for every weight above the floor.
-    above: Vec<(usize, f64, f64)>,
+    above: Vec<Term>,
 }
 
 fn rows(seg: &Segment) -> Vec<Row> {
@@ -60,6 +74,42 @@ fn tuple(seg: &Segment, mut t: usize) -> Vec<usize> {
         t /= d;
     }
     idx
+}
+
+/// The above-floor terms of one row, grouped by the index they take at one input
+/// position `pos` (`(index, [(tuple, weight − floor, weight)])`): a group's terms share that
+/// factor, so the row adds `a[i]·(Σ d·(rest of the tuple))` once per group instead of
+/// one product per term. `pos` is the position giving the fewest groups (the first on
+/// ties): deterministic.
+struct Groups {
+    /// The shared input position.
+    pos: usize,
+    /// `(index at pos, terms)`, in order of first appearance.
+    groups: Vec<(usize, Vec<Term>)>,
+}
+
+fn group_terms(seg: &Segment, row: &Row) -> Groups {
+    let idx: Vec<Vec<usize>> = row.above.iter().map(|&(t, _, _)| tuple(seg, t)).collect();
+    let group_at = |pos: usize| {
+        let mut groups: Vec<(usize, Vec<Term>)> = Vec::new();
+        for (&term, ix) in row.above.iter().zip(&idx) {
+            match groups.iter_mut().find(|(i, _)| *i == ix[pos]) {
+                Some((_, terms)) => terms.push(term),
+                None => groups.push((ix[pos], vec![term])),
+            }
+        }
+        groups
+    };
+    (0..seg.dims.len())
+        .map(|pos| Groups {
+            pos,
+            groups: group_at(pos),
+        })
+        .min_by_key(|g| g.groups.len())
+        .unwrap_or(Groups {
+            pos: 0,
+            groups: Vec::new(),
+        })
 }
 
 /// Emits the functions of one template (see the module docs) and counts their
@@ -185,26 +235,80 @@ impl SparseCode<'_> {
                         let f = quote!(#fp * V::splat(#floor));
                         ops += 1;
                         body.extend(if max {
-                            quote!(#acc = #acc.max(#f);)
+                            quote!(#acc = Lanes::max(#acc, #f);)
                         } else {
                             quote!(#acc = #acc + #f;)
                         });
                     }
-                    for &(t, d, w) in &row.above {
-                        let Some(p) = self.product(seg, t, None) else {
-                            continue;
-                        };
-                        ops += seg.inputs.len();
-                        body.extend(if max {
-                            let w = l.num(w);
-                            quote!(#acc = #acc.max(#p * V::splat(#w));)
-                        } else {
-                            let d = l.num(d);
-                            quote!(#acc = (#p).mul_add(V::splat(#d), #acc);)
-                        });
-                    }
+                    ops += self.grouped_sum(l, seg, (b, s, m), row, &acc, max, body);
                 }
             }
+        }
+        ops
+    }
+
+    /// The name of the inner sum of group `gi` of row `m` of segment `s` of block `b`
+    /// (see [`Groups`]), kept for the backward sweep.
+    fn inner(&(b, s, m): &(usize, usize, usize), gi: usize) -> Ident {
+        format_ident!("q{b}_{s}_{m}_{gi}")
+    }
+
+    /// Adds the row's above-floor terms to `acc` group by group (see [`Groups`]): a
+    /// group of one term as `x_t·d`, a larger one as `a[i]·q` with the inner sum
+    /// `q = Σ d·(rest of the tuple)` bound to [`Self::inner`]. With `max`, the
+    /// max-product form instead: `acc = max(acc, a[i]·max_t w_t·(rest of t))` (exact
+    /// for the non-negative values an SPN holds). Returns the multiply count.
+    #[allow(clippy::too_many_arguments)]
+    fn grouped_sum(
+        &self,
+        l: &Lit,
+        seg: &Segment,
+        at: (usize, usize, usize),
+        row: &Row,
+        acc: &TokenStream,
+        max: bool,
+        body: &mut TokenStream,
+    ) -> usize {
+        let mut ops = 0;
+        let Groups { pos, groups } = group_terms(seg, row);
+        // The weight of a term: above the floor for a sum, whole for a max.
+        let weight = |d: f64, w: f64| l.num(if max { w } else { d });
+        for (gi, (i, terms)) in groups.iter().enumerate() {
+            if let [(t, d, w)] = terms[..] {
+                let Some(p) = self.product(seg, t, None) else {
+                    continue;
+                };
+                ops += seg.inputs.len();
+                let w = weight(d, w);
+                body.extend(if max {
+                    quote!(#acc = Lanes::max(#acc, #p * V::splat(#w));)
+                } else {
+                    quote!(#acc = Lanes::mul_add(#p, V::splat(#w), #acc);)
+                });
+                continue;
+            }
+            let q = Self::inner(&at, gi);
+            for (k, &(t, d, w)) in terms.iter().enumerate() {
+                let w = weight(d, w);
+                // The rest of a tuple of one input is the empty product (groups of two
+                // or more terms only arise with two or more inputs).
+                let rest = self
+                    .product(seg, t, Some(pos))
+                    .unwrap_or_else(|| quote!(V::splat(1.0)));
+                ops += seg.inputs.len() - 1;
+                body.extend(match (k, max) {
+                    (0, _) => quote!(let #q = (#rest) * V::splat(#w);),
+                    (_, false) => quote!(let #q = Lanes::mul_add(#rest, V::splat(#w), #q);),
+                    (_, true) => quote!(let #q = Lanes::max(#q, (#rest) * V::splat(#w));),
+                });
+            }
+            ops += 1;
+            let a = self.elem(seg.inputs[pos], *i);
+            body.extend(if max {
+                quote!(#acc = Lanes::max(#acc, #a * #q);)
+            } else {
+                quote!(#acc = Lanes::mul_add(#a, #q, #acc);)
+            });
         }
         ops
     }
@@ -246,6 +350,92 @@ impl SparseCode<'_> {
         )
     }
 
+    /// Backward sweep of [`Self::grouped_sum`]: adds row `m`'s adjoint `g_m`, through
+    /// its above-floor terms, to the adjoints of the segment's inputs. A group of one
+    /// term adds `g_m·d·(the other factors)` to each factor's adjoint; a larger group
+    /// adds `g_m·q` to its shared factor `a[i]` and, with `h = g_m·a[i]`, `h·d·(the
+    /// other factors)` to the rest of each tuple. Returns the multiply count.
+    fn grouped_adjoints(
+        &self,
+        l: &Lit,
+        seg: &Segment,
+        at: (usize, usize, usize),
+        row: &Row,
+        body: &mut TokenStream,
+    ) -> usize {
+        let mut ops = 0;
+        let gm = {
+            let (gb, mi) = (format_ident!("g{}", at.0), int(at.2));
+            quote!(#gb[#mi])
+        };
+        // `target += h·(the factors of tuple t but those at `skip`)`, per position.
+        let mut spread = |t: usize, h: &Ident, skip: Option<usize>, body: &mut TokenStream| {
+            let idx = tuple(seg, t);
+            for (q, &g) in seg.inputs.iter().enumerate() {
+                if Some(q) == skip {
+                    continue;
+                }
+                let (vector, i) = (self.adjoint_name(g), int(idx[q]));
+                let target = quote!(#vector[#i]);
+                let others: Vec<TokenStream> = seg
+                    .inputs
+                    .iter()
+                    .zip(&idx)
+                    .enumerate()
+                    .filter(|&(o, _)| o != q && Some(o) != skip)
+                    .map(|(_, (&g, &i))| self.elem(g, i))
+                    .collect();
+                body.extend(if others.is_empty() {
+                    quote!(#target = #target + #h;)
+                } else {
+                    ops += others.len();
+                    let o = join(others, &quote!(*));
+                    quote!(#target = Lanes::mul_add(#o, #h, #target);)
+                });
+            }
+        };
+        let Groups { pos, groups } = group_terms(seg, row);
+        let h = format_ident!("h");
+        let hd = format_ident!("hd");
+        for (gi, (i, terms)) in groups.iter().enumerate() {
+            if let [(t, d, _)] = terms[..] {
+                let d = l.num(d);
+                body.extend(quote!(let #h = #gm * V::splat(#d);));
+                spread(t, &h, None, body);
+                continue;
+            }
+            let (q, a) = (Self::inner(&at, gi), self.elem(seg.inputs[pos], *i));
+            let (target, ii) = (self.adjoint_name(seg.inputs[pos]), int(*i));
+            body.extend(quote!(
+                #target[#ii] = Lanes::mul_add(#gm, #q, #target[#ii]);
+                let #h = #gm * #a;
+            ));
+            for &(t, d, _) in terms {
+                let d = l.num(d);
+                if let [_, _] = seg.inputs[..] {
+                    // Two inputs: the other factor's adjoint gets `h·d` in one step.
+                    let other = 1 - pos;
+                    let (vector, j) = (
+                        self.adjoint_name(seg.inputs[other]),
+                        int(tuple(seg, t)[other]),
+                    );
+                    body.extend(
+                        quote!(#vector[#j] = Lanes::mul_add(#h, V::splat(#d), #vector[#j]);),
+                    );
+                } else {
+                    body.extend(quote!(let #hd = #h * V::splat(#d);));
+                    spread(t, &hd, Some(pos), body);
+                }
+            }
+        }
+        // Groups: one multiply-add for `a[i]`, one multiply for `h` and one per term
+        // (`h·d`); a group of one term: `g_m·d`.
+        ops + groups
+            .iter()
+            .map(|(_, t)| if t.len() > 1 { 2 + t.len() } else { 1 })
+            .sum::<usize>()
+    }
+
     /// `fn <prefix>_post(x, post) -> V`: the value and the local posteriors
     /// `post[i][c] = x_i[c]·∂T/∂x_i[c] / T` of every lane, by reverse-mode adjoints;
     /// and its multiply count.
@@ -266,7 +456,7 @@ impl SparseCode<'_> {
         body.extend(quote!(#g_root[#m_root] = V::splat(1.0);));
         for (b, block) in p.blocks.iter().enumerate().rev() {
             let gb = format_ident!("g{b}");
-            for seg in &block.segments {
+            for (s, seg) in block.segments.iter().enumerate() {
                 let seg_rows = rows(seg);
                 let floors: Vec<(usize, f64)> = seg_rows
                     .iter()
@@ -305,24 +495,7 @@ impl SparseCode<'_> {
                     }
                 }
                 for (m, row) in seg_rows.iter().enumerate() {
-                    let mi = int(m);
-                    for &(t, d, _) in &row.above {
-                        let idx = tuple(seg, t);
-                        let d = l.num(d);
-                        body.extend(quote!(let h = #gb[#mi] * V::splat(#d);));
-                        ops += 1;
-                        for (q, &g) in seg.inputs.iter().enumerate() {
-                            let (vector, i) = (self.adjoint_name(g), int(idx[q]));
-                            let target = quote!(#vector[#i]);
-                            body.extend(match self.product(seg, t, Some(q)) {
-                                Some(o) => {
-                                    ops += seg.inputs.len() - 1;
-                                    quote!(#target = (#o).mul_add(h, #target);)
-                                }
-                                None => quote!(#target = #target + h;),
-                            });
-                        }
-                    }
+                    ops += self.grouped_adjoints(l, seg, (b, s, m), row, &mut body);
                 }
             }
         }
@@ -409,7 +582,7 @@ impl SparseCode<'_> {
                         body.extend(quote!(#rt::sel(&mut r, &mut #ab[#mi], #f * #w, #code);));
                     }
                 }
-                body.extend(quote!(#bb[#mi] = r.max(0.0);));
+                body.extend(quote!(#bb[#mi] = Lanes::max(r, #zero);));
             }
         }
         self.backtrack(&mut body);

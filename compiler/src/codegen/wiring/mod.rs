@@ -393,7 +393,7 @@ fn lane_items(tpls: &[Tpl], cx: &Context) -> TokenStream {
         (_, false) => quote!(#rt::Lanes64),
     };
     quote! {
-        use #rt::Lanes as _;
+        use #rt::Lanes;
         /// The lane vector of block templates.
         type V = #v_type;
     }
