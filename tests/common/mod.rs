@@ -322,6 +322,13 @@ fn main() {
 }
 "#;
 
+/// The release profile of the temporary crates: opt-level 1. Rust never reorders or
+/// fuses float operations at any opt-level, so the results are those of an opt-level 3
+/// build bit for bit (the firmware tests compare opt-level 3 builds); the straight-line
+/// template functions of a dozen modules compile several times faster, which is most of
+/// these tests' time.
+const TEST_PROFILE: &str = "[profile.release]\nopt-level = 1\ndebug = false\n";
+
 /// Shared target folder of the temporary crates (keeps the runtime's build cached).
 fn target_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/generated-tests")
@@ -345,7 +352,7 @@ pub fn build_crate_with(
     std::fs::write(
         dir.join("Cargo.toml"),
         format!(
-            "[package]\nname = \"{crate_name}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\n[dependencies]\ngraphspn-runtime = {{ path = {:?} }}\n\n[workspace]\n",
+            "[package]\nname = \"{crate_name}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\n[dependencies]\ngraphspn-runtime = {{ path = {:?} }}\n\n[workspace]\n\n{TEST_PROFILE}",
             runtime.display().to_string()
         ),
     )
