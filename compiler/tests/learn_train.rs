@@ -417,3 +417,197 @@ fn tied_em_equals_untied_em_on_the_augmented_data() {
     assert!(moved > 1e-3, "training moved no weight ({moved})");
     assert!(worst < 1e-10, "tied vs untied on augmented data: {worst}");
 }
+
+/// Soft EM adds a node's log-derivatives from its parents in log space: the sum must
+/// stay finite when they differ by more than `ln f64::MAX` (709 nats). One root weight
+/// of `1e-320` (−737 nats, finite and ≥ 0, so accepted) makes a region's sums
+/// reachable through a product worth −737 nats and through products worth about −5;
+/// such a weight must train like a weight of exactly 0 (its share is `e^−737`).
+/// `ln(e^a + e^b)` computed as `a + ln(1 + e^(b − a))` from the smaller term overflows
+/// to `+∞` there: the M-step gives those sums NaN weights (which the next epoch then
+/// resets to its smoothing alone).
+#[test]
+fn soft_em_survives_parents_more_than_709_nats_apart() {
+    let table = mixture_table(5, 3, 2, 21);
+    let samples = sample_table(&table, 5, 3, 300, 21);
+    let start = dense_structure(5, 3, &DenseParams::default(), 2).unwrap();
+    let with_first_root_weight = |w0: f64| {
+        let mut spn = start.clone();
+        let root = spn.root as usize;
+        let Node::Sum { weights, .. } = &mut spn.nodes[root] else {
+            panic!("the root is a sum")
+        };
+        weights[0] = w0;
+        let rep = train(
+            &mut spn,
+            &samples,
+            &fixed(1.0, 2, EmKind::Soft),
+            Progress::Hidden,
+        )
+        .unwrap();
+        (spn, rep)
+    };
+    let (tiny, rep) = with_first_root_weight(1e-320);
+    let (zero, rep0) = with_first_root_weight(0.0);
+    let (mut worst, mut sums) = (0.0f64, 0);
+    for (a, b) in tiny.nodes.iter().zip(&zero.nodes) {
+        if let (Node::Sum { weights: wa, .. }, Node::Sum { weights: wb, .. }) = (a, b) {
+            assert!(wa.iter().all(|w| w.is_finite() && *w > 0.0), "{wa:?}");
+            for (x, y) in wa.iter().zip(wb) {
+                worst = worst.max((x - y).abs());
+            }
+            sums += 1;
+        }
+    }
+    assert!(sums > 1);
+    assert!(worst < 1e-12, "1e-320 vs 0: weights differ by {worst}");
+    for (l, l0) in rep
+        .log_likelihood_per_epoch
+        .iter()
+        .zip(&rep0.log_likelihood_per_epoch)
+    {
+        assert!((l - l0).abs() < 1e-12, "{l} vs {l0}");
+    }
+}
+
+/// A sample of probability zero is reported by its own tuple and first index, whatever
+/// the chunking of the E-step: here the second distinct tuple (in sorted order) is
+/// impossible (a zero weight on class 2 of variable 1); it is the first of the second
+/// chunk with a batch size of 1 and the second of the only chunk with a large one.
+#[test]
+fn a_zero_probability_sample_is_reported_by_its_own_index() {
+    let mut spn = graphspn_compiler::learn::uniform_spn(2, 3).unwrap();
+    let Node::Sum { weights, .. } = &mut spn.nodes[7] else {
+        panic!("node 7 is variable 1's sum")
+    };
+    weights[2] = 0.0;
+    let samples = vec![vec![0u16, 0], vec![2, 1], vec![1, 2], vec![1, 2]];
+    for batch_size in [1, 1000] {
+        let settings = TrainingSettings {
+            batch_size,
+            ..TrainingSettings::default()
+        };
+        assert_eq!(
+            train(&mut spn.clone(), &samples, &settings, Progress::Hidden),
+            Err(TrainError::ZeroProbability {
+                index: 2,
+                sample: vec![1, 2]
+            }),
+            "batch size {batch_size}"
+        );
+    }
+}
+
+/// The reported objective is the documented one, with the smoothing of the epoch that
+/// produced the weights: `(fit + s_e·Σ log w) / N` per sample, `fit` the MPE-tree
+/// (hard) or SPN (soft) log-likelihood. A one-epoch run gives the weights after the
+/// first epoch (smoothing 30 in both runs), so a two-epoch run (smoothing 30, then 5)
+/// must report the same first objective; the penalty is recomputed from the weights.
+#[test]
+fn objective_uses_the_smoothing_of_its_epoch() {
+    let table = mixture_table(4, 3, 2, 31);
+    let samples = sample_table(&table, 4, 3, 500, 31);
+    let n = samples.len() as f64;
+    for em in [EmKind::Hard, EmKind::Soft] {
+        let settings = |epochs| TrainingSettings {
+            epochs,
+            smoothing_start: 30.0,
+            smoothing_end: 5.0,
+            em,
+            ..TrainingSettings::default()
+        };
+        let mut one = dense_structure(4, 3, &DenseParams::default(), 6).unwrap();
+        let r1 = train(&mut one, &samples, &settings(1), Progress::Hidden).unwrap();
+        let penalty: f64 = one
+            .nodes
+            .iter()
+            .filter_map(|n| match n {
+                Node::Sum { weights, .. } => Some(weights.iter().map(|w| w.ln()).sum::<f64>()),
+                _ => None,
+            })
+            .sum();
+        let fit = match em {
+            EmKind::Hard => r1.mpe_log_likelihood_per_epoch[0],
+            EmKind::Soft => r1.log_likelihood_per_epoch[0],
+        };
+        let want = fit + 30.0 * penalty / n;
+        let got = r1.objective_per_epoch[0];
+        assert!(
+            (got - want).abs() < 1e-9 * want.abs(),
+            "{em:?}: {got} vs {want}"
+        );
+        let mut two = dense_structure(4, 3, &DenseParams::default(), 6).unwrap();
+        let r2 = train(&mut two, &samples, &settings(2), Progress::Hidden).unwrap();
+        assert_eq!(r2.smoothing_per_epoch, vec![30.0, 5.0]);
+        assert_eq!(
+            r2.log_likelihood_per_epoch[0],
+            r1.log_likelihood_per_epoch[0]
+        );
+        assert_eq!(r2.objective_per_epoch[0], got, "{em:?}");
+    }
+}
+
+/// `prune_threshold > 0` prunes after training (the same as calling [`prune`] on the
+/// trained SPN), and `0` leaves the trained SPN as it is.
+#[test]
+fn training_prunes_only_with_a_positive_threshold() {
+    let table = mixture_table(5, 3, 2, 3);
+    let samples = sample_table(&table, 5, 3, 2_000, 3);
+    let start = dense_structure(5, 3, &DenseParams::default(), 4).unwrap();
+    let mut plain = start.clone();
+    train(
+        &mut plain,
+        &samples,
+        &fixed(0.01, 4, EmKind::Hard),
+        Progress::Hidden,
+    )
+    .unwrap();
+    let mut by_hand = plain.clone();
+    assert!(prune(&mut by_hand, 1e-3) > 0, "nothing to prune");
+    let mut pruned = start.clone();
+    let settings = TrainingSettings {
+        prune_threshold: 1e-3,
+        ..fixed(0.01, 4, EmKind::Hard)
+    };
+    train(&mut pruned, &samples, &settings, Progress::Hidden).unwrap();
+    assert_eq!(pruned, by_hand);
+    assert!(num_weights(&pruned) < num_weights(&plain));
+    // Threshold 0: not even renormalised.
+    let mut again = start.clone();
+    let zero = TrainingSettings {
+        prune_threshold: 0.0,
+        ..fixed(0.01, 4, EmKind::Hard)
+    };
+    train(&mut again, &samples, &zero, Progress::Hidden).unwrap();
+    assert_eq!(again, plain);
+}
+
+/// Sum weights must be finite and ≥ 0: a negative, NaN or infinite weight is refused
+/// naming its node, before any training.
+#[test]
+fn bad_weights_are_refused() {
+    let start = uniform_spn_2x3();
+    for bad in [-0.5, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let mut spn = start.clone();
+        let Node::Sum { weights, .. } = &mut spn.nodes[3] else {
+            panic!("node 3 is variable 0's sum")
+        };
+        weights[1] = bad;
+        let before = spn.clone();
+        let r = train(
+            &mut spn,
+            &[vec![0, 0], vec![1, 2]],
+            &TrainingSettings::default(),
+            Progress::Hidden,
+        );
+        assert!(
+            matches!(r, Err(TrainError::BadSpn { node: 3, .. })),
+            "weight {bad}: {r:?}"
+        );
+        assert_eq!(format!("{spn:?}"), format!("{before:?}"), "weight {bad}");
+    }
+}
+
+fn uniform_spn_2x3() -> graphspn_compiler::spn::Spn {
+    graphspn_compiler::learn::uniform_spn(2, 3).unwrap()
+}
