@@ -78,13 +78,11 @@ fn bp_is_exact_on_random_trees() {
             Err(MrfError::Inconsistent) => continue,
             Err(e) => panic!("seed {seed}: {e}"),
         };
-        for schedule in [Schedule::Parallel, Schedule::Sequential] {
-            let opts = BpOptions {
-                tolerance: 1e-13,
-                max_iterations: 200,
-                schedule,
-                ..BpOptions::default()
-            };
+        for (schedule, opts) in each_schedule(BpOptions {
+            tolerance: 1e-13,
+            max_iterations: 200,
+            ..BpOptions::default()
+        }) {
             let bp =
                 loopy_bp(&fg, &opts).unwrap_or_else(|e| panic!("seed {seed} {schedule:?}: {e}"));
             assert!(bp.converged, "seed {seed} {schedule:?}: did not converge");
@@ -202,16 +200,11 @@ fn non_convergence_is_reported() {
     let fg = loopy_graph(7, 1);
     let full = loopy_bp(&fg, &BpOptions::default()).unwrap();
     assert!(full.converged && full.final_change < 1e-9);
-    for schedule in [Schedule::Parallel, Schedule::Sequential] {
-        let short = loopy_bp(
-            &fg,
-            &BpOptions {
-                max_iterations: 2,
-                schedule,
-                ..BpOptions::default()
-            },
-        )
-        .unwrap();
+    for (schedule, opts) in each_schedule(BpOptions {
+        max_iterations: 2,
+        ..BpOptions::default()
+    }) {
+        let short = loopy_bp(&fg, &opts).unwrap();
         assert!(!short.converged, "{schedule:?}");
         assert_eq!(short.iterations, 2);
         assert!(short.final_change >= 1e-9);
@@ -338,6 +331,12 @@ fn damping_mixes_the_update_with_the_old_message_as_documented() {
     }
 }
 
+/// `opts` with each schedule in turn: every BP property is checked under both.
+fn each_schedule(opts: BpOptions) -> [(Schedule, BpOptions); 2] {
+    [Schedule::Parallel, Schedule::Sequential]
+        .map(|schedule| (schedule, BpOptions { schedule, ..opts }))
+}
+
 /// Messages far below `f64`'s range take the log path even when no potential is
 /// extreme: variable 0's evidence (three factors of `1e-110`) leaves its state 1 at
 /// `1e-330`, below the smallest `f64`, yet an identity factor and variable 1's hard
@@ -351,15 +350,8 @@ fn messages_below_the_f64_range_take_the_log_path() {
     }
     fg.add_factor(vec![0, 1], vec![1.0, 0.0, 0.0, 1.0]).unwrap();
     fg.add_factor(vec![1], vec![0.0, 1.0]).unwrap();
-    for schedule in [Schedule::Parallel, Schedule::Sequential] {
-        let bp = loopy_bp(
-            &fg,
-            &BpOptions {
-                schedule,
-                ..BpOptions::default()
-            },
-        )
-        .unwrap_or_else(|e| panic!("{schedule:?}: {e}"));
+    for (schedule, opts) in each_schedule(BpOptions::default()) {
+        let bp = loopy_bp(&fg, &opts).unwrap_or_else(|e| panic!("{schedule:?}: {e}"));
         assert_eq!(bp.marginals[0], vec![0.0, 1.0], "{schedule:?}");
         assert_eq!(bp.marginals[1], vec![0.0, 1.0], "{schedule:?}");
     }
@@ -373,14 +365,8 @@ fn a_message_with_no_mass_is_a_contradiction() {
     let mut fg = FactorGraph::new(vec![2, 2]).unwrap();
     fg.add_factor(vec![1], vec![1.0, 0.0]).unwrap();
     fg.add_factor(vec![0, 1], vec![0.0, 1.0, 0.0, 1.0]).unwrap();
-    for schedule in [Schedule::Parallel, Schedule::Sequential] {
-        let r = loopy_bp(
-            &fg,
-            &BpOptions {
-                schedule,
-                ..BpOptions::default()
-            },
-        );
+    for (schedule, opts) in each_schedule(BpOptions::default()) {
+        let r = loopy_bp(&fg, &opts);
         assert!(
             matches!(r, Err(MrfError::Contradiction { .. })),
             "{schedule:?}: {r:?}"
