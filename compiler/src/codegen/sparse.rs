@@ -168,18 +168,20 @@ impl SparseCode<'_> {
         quote!(#v[#i])
     }
 
-    /// `a[i] * b[j] * c[k]` of tuple `t`, leaving out input position `skip`.
-    fn product(&self, seg: &Segment, t: usize, skip: Option<usize>) -> Option<TokenStream> {
+    /// `a[i] * b[j] * c[k]` of tuple `t`, leaving out the input positions in `skip`;
+    /// `None` when no factor is left. Also returns the number of factors.
+    fn product(&self, seg: &Segment, t: usize, skip: &[usize]) -> (Option<TokenStream>, usize) {
         let idx = tuple(seg, t);
         let f: Vec<TokenStream> = seg
             .inputs
             .iter()
             .zip(&idx)
             .enumerate()
-            .filter(|&(q, _)| Some(q) != skip)
+            .filter(|(q, _)| !skip.contains(q))
             .map(|(_, (&g, &i))| self.elem(g, i))
             .collect();
-        (!f.is_empty()).then(|| join(f, &quote!(*)))
+        let n = f.len();
+        ((n > 0).then(|| join(f, &quote!(*))), n)
     }
 
     /// `let sv{g} = V::sum(&vec)` (or `max_of`) once per input vector.
@@ -275,7 +277,7 @@ impl SparseCode<'_> {
         let weight = |d: f64, w: f64| l.num(if max { w } else { d });
         for (gi, (i, terms)) in groups.iter().enumerate() {
             if let [(t, d, w)] = terms[..] {
-                let Some(p) = self.product(seg, t, None) else {
+                let (Some(p), _) = self.product(seg, t, &[]) else {
                     continue;
                 };
                 ops += seg.inputs.len();
@@ -293,7 +295,8 @@ impl SparseCode<'_> {
                 // The rest of a tuple of one input is the empty product (groups of two
                 // or more terms only arise with two or more inputs).
                 let rest = self
-                    .product(seg, t, Some(pos))
+                    .product(seg, t, &[pos])
+                    .0
                     .unwrap_or_else(|| quote!(V::splat(1.0)));
                 ops += seg.inputs.len() - 1;
                 body.extend(match (k, max) {
@@ -368,7 +371,8 @@ impl SparseCode<'_> {
             let (gb, mi) = (format_ident!("g{}", at.0), int(at.2));
             quote!(#gb[#mi])
         };
-        // `target += h·(the factors of tuple t but those at `skip`)`, per position.
+        // `target += h·(the factors of tuple t but those at q and `skip`)`, per
+        // position q.
         let mut spread = |t: usize, h: &Ident, skip: Option<usize>, body: &mut TokenStream| {
             let idx = tuple(seg, t);
             for (q, &g) in seg.inputs.iter().enumerate() {
@@ -377,20 +381,13 @@ impl SparseCode<'_> {
                 }
                 let (vector, i) = (self.adjoint_name(g), int(idx[q]));
                 let target = quote!(#vector[#i]);
-                let others: Vec<TokenStream> = seg
-                    .inputs
-                    .iter()
-                    .zip(&idx)
-                    .enumerate()
-                    .filter(|&(o, _)| o != q && Some(o) != skip)
-                    .map(|(_, (&g, &i))| self.elem(g, i))
-                    .collect();
-                body.extend(if others.is_empty() {
-                    quote!(#target = #target + #h;)
-                } else {
-                    ops += others.len();
-                    let o = join(others, &quote!(*));
-                    quote!(#target = Lanes::mul_add(#o, #h, #target);)
+                let left_out: Vec<usize> = [Some(q), skip].into_iter().flatten().collect();
+                body.extend(match self.product(seg, t, &left_out) {
+                    (Some(o), n) => {
+                        ops += n;
+                        quote!(#target = Lanes::mul_add(#o, #h, #target);)
+                    }
+                    (None, _) => quote!(#target = #target + #h;),
                 });
             }
         };
