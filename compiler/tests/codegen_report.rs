@@ -5,15 +5,23 @@ use std::path::PathBuf;
 
 use graphspn_compiler::codegen::{Builder, Vectorisation};
 
-fn demo(file: &str, v: Vectorisation) -> graphspn_compiler::codegen::CodeReport {
+/// The demo model on demo map `file` with 5 decompositions, seed 0.
+fn builder(file: &str, v: Vectorisation) -> Builder {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
-    let b = Builder::new(dir.join("model.json"), dir.join(file))
+    Builder::new(dir.join("model.json"), dir.join(file))
         .vectorisation(v)
         .seed(0)
-        .count(5);
+        .count(5)
+}
+
+/// Source and report of [`builder`]'s module.
+fn generate(b: &Builder) -> (String, graphspn_compiler::codegen::CodeReport) {
     b.report_from(&b.load().expect("demo inputs"))
         .expect("generation")
-        .1
+}
+
+fn demo(file: &str, v: Vectorisation) -> graphspn_compiler::codegen::CodeReport {
+    generate(&builder(file, v)).1
 }
 
 /// Lane groups are formed from neighbouring components (ordered by their first
@@ -67,4 +75,43 @@ fn grouped_terms_cut_the_multiply_adds() {
     assert!(r.macs_log_likelihood <= 300_000, "{r:?}");
     assert!(r.macs_marginals <= 1_100_000, "{r:?}");
     assert!(r.macs_mpe <= 380_000, "{r:?}");
+}
+
+/// The `marginals` body: from its `_unchecked` signature to the next `pub fn`.
+fn marginals_body(src: &str) -> &str {
+    let start = src
+        .find("pub fn marginals_unchecked")
+        .expect("marginals_unchecked");
+    let rest = &src[start + 1..];
+    &rest[..rest.find("pub fn").unwrap_or(rest.len())]
+}
+
+/// SIMD `marginals` evaluates every component once (`eval_group` with the posteriors,
+/// no value pass) when its scratch fits the stack budget: at 230 places its
+/// multiply-adds are those of the posterior pass alone, and its stack bound includes
+/// the scratch. With a budget that only two passes fit, it falls back to them.
+#[test]
+fn simd_marginals_take_one_pass_when_the_scratch_fits() {
+    let b = builder("saarbrucken_seq2_night1.json", Vectorisation::Simd);
+    let (src, one) = generate(&b);
+    let body = marginals_body(&src);
+    assert!(
+        body.contains("eval_group") && !body.contains(" values(e"),
+        "{body}"
+    );
+
+    let (src, two) = generate(&b.max_stack_bytes(one.stack_marginals - 1));
+    let body = marginals_body(&src);
+    assert!(
+        body.contains(" values(e") && body.contains("posterior_pass"),
+        "{body}"
+    );
+    assert_eq!(
+        two.macs_marginals,
+        one.macs_marginals + one.macs_log_likelihood
+    );
+    assert!(
+        two.stack_marginals + 40_000 < one.stack_marginals,
+        "{two:?} {one:?}"
+    );
 }

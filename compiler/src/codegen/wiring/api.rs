@@ -4,7 +4,7 @@
 use proc_macro2::TokenStream;
 use quote::quote;
 
-use super::super::emit::rt;
+use super::super::emit::{int, rt};
 use super::super::surface::{checked, checked_labelled};
 use super::{Context, Tpl};
 
@@ -40,10 +40,13 @@ pub(super) fn value_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
 }
 
 /// The stateless entry points: (labelled) log-likelihood, marginals, MPE, each with
-/// its `_unchecked` twin.
-pub(super) fn stateless_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
+/// its `_unchecked` twin. `one_pass`: `marginals` evaluates every component once with
+/// its posteriors, keeping them on the stack until the decomposition weights are known
+/// (SIMD hosts); otherwise a value pass, then a posterior pass (microcontrollers: no
+/// scratch of the size of the map).
+pub(super) fn stateless_api(tpls: &[Tpl], cx: &Context, one_pass: bool) -> TokenStream {
     let likelihood = likelihood_api(cx);
-    let marginals = posterior_pass(tpls, cx);
+    let marginals = posterior_pass(tpls, cx, one_pass);
     let mpe = mpe(tpls, cx);
     quote!(#likelihood #marginals #mpe)
 }
@@ -82,21 +85,36 @@ fn likelihood_api(cx: &Context) -> TokenStream {
     }
 }
 
-/// `marginals`: the value pass, then every component's weighted local posteriors.
-fn posterior_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
+/// `marginals`: every component's weighted local posteriors, after a value pass (or,
+/// `one_pass`, from one evaluation of every component kept on the stack).
+fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let passes = if one_pass {
+        " One pass over the components (each evaluated once with its posteriors, kept on the"
+    } else {
+        " Two passes over the components (values, then posteriors); [`State`] keeps the"
+    };
+    let passes_end = if one_pass {
+        " stack until the decompositions' weights are known)."
+    } else {
+        " posteriors instead."
+    };
     let checked = checked(
         &cx.l,
         &[
             " Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error",
-            " about 1e-6 in `f32`) and returns the log-likelihood `ln S(α)`. Two passes over the",
-            " components (values, then posteriors); [`State`] keeps the posteriors instead.",
+            " about 1e-6 in `f32`) and returns the log-likelihood `ln S(α)`.",
+            passes,
+            passes_end,
         ],
         "marginals",
         quote!(e: &Evidence, out: &mut Marginals),
         quote!(e, out),
         TokenStream::new(),
     );
+    if one_pass {
+        return one_pass_marginals(tpls, cx, checked);
+    }
     let calls = per_template(tpls, |tp| {
         let stat = &tp.stat;
         quote!(#rt::posterior_pass(&#stat, e, &w, out);)
@@ -110,6 +128,51 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
                 *row = [0.0; NUM_CLASSES];
             }
             #calls
+            Ok(l)
+        }
+
+        #checked
+    }
+}
+
+/// `marginals` in one pass: every lane group evaluated once with its posteriors
+/// (values and posteriors stored as in the [`State`]'s cache), the decompositions
+/// mixed from the values, then the weighted posteriors added up.
+fn one_pass_marginals(tpls: &[Tpl], cx: &Context, checked: TokenStream) -> TokenStream {
+    let (rt, t) = (rt(), cx.l.ty());
+    let mut eval = TokenStream::new();
+    let mut values = TokenStream::new();
+    let mut scatter = TokenStream::new();
+    for tp in tpls {
+        let (stat, groups) = (&tp.stat, int(tp.groups()));
+        let (first_component, first_row) = (int(tp.first_component), int(tp.first_row));
+        eval.extend(quote! {
+            if let (Some(v), Some(p)) = (val.get_mut(#first_component..), post.get_mut(#first_row..)) {
+                for g in 0..#groups {
+                    #rt::eval_group(&#stat, e, g, v, p);
+                }
+            }
+        });
+        values.extend(quote! {
+            if let Some(v) = val.get(#first_component..) { #rt::state_values(&#stat, v, &mut acc); }
+        });
+        scatter.extend(quote! {
+            if let Some(p) = post.get(#first_row..) { #rt::state_marginals(&#stat, p, &w, out); }
+        });
+    }
+    quote! {
+        /// Like [`marginals`], without validating the evidence.
+        pub fn marginals_unchecked(e: &Evidence, out: &mut Marginals) -> Result<#t, ::graphspn_runtime::EvidenceError> {
+            let mut val = [0.0; NUM_COMPONENTS];
+            let mut post = [[0.0; NUM_CLASSES]; NUM_ROWS];
+            #eval
+            let mut acc = [#rt::Acc::ONE; NUM_DECOMPOSITIONS];
+            #values
+            let (l, w) = finish(&acc, #rt::log_scale(e, &ALL_UNKNOWN))?;
+            for row in out.iter_mut() {
+                *row = [0.0; NUM_CLASSES];
+            }
+            #scatter
             Ok(l)
         }
 

@@ -342,7 +342,7 @@ pub fn module(
     let tpls = plan_templates(model, &uniques, &cx);
     let layout = Layout::new(&tpls, &uniques, &cx);
     let (tables, table_bytes) = tables(&tpls, &uniques, &layout, &cx);
-    let report = report(&tpls, &layout, table_bytes, &cx, options)?;
+    let (report, one_pass) = report(&tpls, &layout, table_bytes, &cx, options)?;
     let lane_items = lane_items(&tpls, &cx);
     let constants = constants_and_types(&Surface {
         l: &cx.l,
@@ -361,7 +361,7 @@ pub fn module(
     let rows = int(layout.rows);
     let functions = tpls.iter().map(|tp| &tp.code);
     let value_pass = api::value_pass(&tpls, &cx);
-    let stateless = api::stateless_api(&tpls, &cx);
+    let stateless = api::stateless_api(&tpls, &cx, one_pass);
     let state = state::state_api(&tpls, &cx);
     let compiled_map = compiled_map_impl(&cx.l);
     let tokens = quote! {
@@ -470,15 +470,16 @@ fn tables(tpls: &[Tpl], uniques: &[Unique], layout: &Layout, cx: &Context) -> (T
     (out, bytes)
 }
 
-/// Stack bounds, state and table bytes and multiply-adds of the generated code;
-/// fails when a stack bound exceeds the budget.
+/// Stack bounds, state and table bytes and multiply-adds of the generated code, and
+/// whether `marginals` takes one pass over the components (see
+/// [`api::stateless_api`]); fails when a stack bound exceeds the budget.
 fn report(
     tpls: &[Tpl],
     layout: &Layout,
     table_bytes: usize,
     cx: &Context,
     options: &CodegenOptions,
-) -> Result<CodeReport, CodegenError> {
+) -> Result<(CodeReport, bool), CodegenError> {
     let (n, c, d_count, scalar) = (cx.n, cx.c, cx.d_count, cx.scalar);
     // Driver frame: the gathered inputs and the posteriors (`vars × classes` vectors
     // each), the gather's per-lane row sources (a reference, a scale and a tag: 24
@@ -503,7 +504,24 @@ fn report(
     let per_groups =
         |f: &dyn Fn(&Tpl) -> usize| -> usize { tpls.iter().map(|tp| tp.groups() * f(tp)).sum() };
     let macs_ll = per_groups(&|tp| tp.counts.fwd);
-    let macs_marg = macs_ll + per_groups(&|tp| tp.counts.post) + rows * c;
+    // Marginals in one pass (SIMD code whose scratch of every component's value and
+    // posteriors fits the budget): `_post` only; otherwise a value pass first.
+    let two_pass_stack = top
+        + d_count * scalar
+        + deepest
+        + tpls
+            .iter()
+            .map(|tp| tp.vars * c * tp.lanes * scalar)
+            .max()
+            .unwrap_or(0);
+    let scratch = (u_total + rows * c) * scalar;
+    let one_pass = cx.simd_lanes > 1 && two_pass_stack + scratch <= options.stack_budget();
+    let macs_post = per_groups(&|tp| tp.counts.post) + rows * c;
+    let macs_marg = if one_pass {
+        macs_post
+    } else {
+        macs_ll + macs_post
+    };
     let macs_mpe = per_groups(&|tp| tp.counts.max)
         + tpls
             .iter()
@@ -530,14 +548,7 @@ fn report(
         lanes: cx.simd_lanes,
         components: u_total,
         stack_log_likelihood: top + deepest,
-        stack_marginals: top
-            + d_count * scalar
-            + deepest
-            + tpls
-                .iter()
-                .map(|tp| tp.vars * c * tp.lanes * scalar)
-                .max()
-                .unwrap_or(0),
+        stack_marginals: two_pass_stack + if one_pass { scratch } else { 0 },
         stack_mpe: top + deepest,
         stack_state: top + deepest,
         state_bytes,
@@ -550,5 +561,5 @@ fn report(
             / n.max(1) as f64,
     };
     report.check_budget(options)?;
-    Ok(report)
+    Ok((report, one_pass))
 }
