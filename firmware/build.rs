@@ -1,5 +1,6 @@
-//! Linker scripts: cortex-m-rt's `link.x` with this board's `memory.x` on
-//! Cortex-M, the firmware's own `rv32.x` on RISC-V; nothing on the host.
+//! Linker scripts: cortex-m-rt's `link.x` with the boards' `memory.x` on
+//! Cortex-M (M4F and M3), the firmware's own `rv32.x` on RISC-V; nothing on the
+//! host.
 
 use std::path::PathBuf;
 

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Instruction-count benchmark of the generated code on emulated microcontrollers:
-# builds firmware/ for Cortex-M4F (thumbv7em-none-eabihf, QEMU netduinoplus2) and
-# RV32IMAC (riscv32imac-unknown-none-elf, QEMU virt) in three profiles, runs each
-# under QEMU with -icount shift=0 (exact instruction counts) and prints one table
-# per map:
+# builds firmware/ for Cortex-M4F (thumbv7em-none-eabihf, QEMU netduinoplus2),
+# Cortex-M3 without FPU (thumbv7m-none-eabi, QEMU netduino2) and RV32IMAC
+# (riscv32imac-unknown-none-elf, QEMU virt) in three profiles, runs each under QEMU
+# with -icount shift=0 (exact instruction counts; scripts/mcu-run.sh, which picks
+# the board) and prints one table per map:
 #
 #   release   opt-level 3 everywhere
 #   size      opt-level "s", the generated maps crate and its numerics at 3
@@ -28,28 +29,18 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-mcu.sh
-TOOLS="${GRAPHSPN_MCU_TOOLS:-$HOME/.cache/graphspn/mcu-tools}/qemu"
-if [ -e "$TOOLS/.complete" ]; then
-    export PATH="$TOOLS/usr/bin:$PATH"
-    export LD_LIBRARY_PATH="$TOOLS/usr/lib/x86_64-linux-gnu:$TOOLS/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
-fi
 export CARGO_TARGET_DIR="$PWD/target/firmware"
 PROFILES=("$@")
 [ "${#PROFILES[@]}" -gt 0 ] || PROFILES=(release size size-all)
-TARGETS=(thumbv7em-none-eabihf riscv32imac-unknown-none-elf)
+TARGETS=(thumbv7em-none-eabihf thumbv7m-none-eabi riscv32imac-unknown-none-elf)
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
 
 for p in "${PROFILES[@]}"; do
-    (cd firmware && cargo build --quiet --profile "$p" --target "${TARGETS[0]}" --target "${TARGETS[1]}")
+    (cd firmware && cargo build --quiet --profile "$p" "${TARGETS[@]/#/--target=}")
     for t in "${TARGETS[@]}"; do
         elf="$CARGO_TARGET_DIR/$t/$p/graphspn-firmware"
-        case "$t" in
-        thumb*) timeout 600 qemu-system-arm -M netduinoplus2 -nographic -monitor none -serial null \
-            -semihosting-config enable=on,target=native -icount shift=0 -kernel "$elf" >"$out/$t.$p.txt" ;;
-        riscv*) timeout 600 qemu-system-riscv32 -M virt -bios none -nographic -monitor none \
-            -serial stdio -icount shift=0 -kernel "$elf" | tr -d '\r' >"$out/$t.$p.txt" ;;
-        esac
+        timeout 600 bash scripts/mcu-run.sh "$elf" | tr -d '\r' >"$out/$t.$p.txt"
         size -A "$elf" | awk '$1 == ".text" || $1 == ".rodata" { s += $2 } END { print "total", s }' >"$out/$t.$p.size"
         # Bytes per map module: code (t/T) and tables (r/R/d/D) of its symbols; the tree driver.
         nm -S -t d -C "$elf" | awk '

@@ -2,14 +2,16 @@
 # Installs what the firmware test (tests/mcu_qemu.rs) and the instruction-count
 # benchmark (scripts/mcu-bench.sh) need, from the project's own files:
 #
-# - the Rust targets thumbv7em-none-eabihf (Cortex-M4F) and
-#   riscv32imac-unknown-none-elf (rustup);
-# - QEMU 7.2 (qemu-system-arm for the netduinoplus2 board, qemu-system-riscv32 for
-#   `virt`) from Debian's packages, unpacked into a cache folder without installing:
-#   `apt-get install qemu-system-arm` fails on machines whose preinstalled qemu-utils
-#   10.0 conflicts with Debian's 7.2, so the packages and the shared libraries
-#   missing on this machine are fetched with `apt-get download` and unpacked with
-#   `dpkg -x`.
+# - the Rust targets thumbv7em-none-eabihf (Cortex-M4F), thumbv7m-none-eabi
+#   (Cortex-M3) and riscv32imac-unknown-none-elf (rustup); checked on every run,
+#   before and independently of QEMU's cache, so a target added here reaches
+#   machines that set up an older list;
+# - QEMU 7.2 (qemu-system-arm for the netduinoplus2 and netduino2 boards,
+#   qemu-system-riscv32 for `virt`) from Debian's packages, unpacked into a cache
+#   folder without installing: `apt-get install qemu-system-arm` fails on machines
+#   whose preinstalled qemu-utils 10.0 conflicts with Debian's 7.2, so the packages
+#   and the shared libraries missing on this machine are fetched with `apt-get
+#   download` and unpacked with `dpkg -x`.
 #
 # Idempotent and quiet when everything is already there. Prints nothing else on
 # success. The cache folder is $GRAPHSPN_MCU_TOOLS, default
@@ -18,7 +20,7 @@
 # (tests/mcu_qemu.rs and scripts/mcu-bench.sh set LD_LIBRARY_PATH themselves).
 set -euo pipefail
 
-TARGETS=(thumbv7em-none-eabihf riscv32imac-unknown-none-elf)
+TARGETS=(thumbv7em-none-eabihf thumbv7m-none-eabi riscv32imac-unknown-none-elf)
 TOOLS="${GRAPHSPN_MCU_TOOLS:-$HOME/.cache/graphspn/mcu-tools}"
 QEMU="$TOOLS/qemu"
 # Written last: its presence means the unpacked QEMU is complete and runs.

@@ -1,12 +1,15 @@
-//! The firmware (`firmware/`) on emulated microcontrollers: builds it (release) for
-//! Cortex-M4F (`thumbv7em-none-eabihf`, QEMU `netduinoplus2`) and RV32IMAC
-//! (`riscv32imac-unknown-none-elf`, QEMU `virt`), and for the host at the x86-64
-//! baseline (SSE2, no FMA); runs each (QEMU with `-icount shift=0`, bounded time),
-//! parses the reports and checks, for both maps compiled with both model families
-//! (GraphSPN and tree mixture) and all four entry points:
+//! The firmware (`firmware/`) on emulated microcontrollers ([`MCUS`]): builds it
+//! (release) for Cortex-M4F (`thumbv7em-none-eabihf`, QEMU `netduinoplus2`),
+//! Cortex-M3 (`thumbv7m-none-eabi`, QEMU `netduino2`; no FPU: soft-float calls) and
+//! RV32IMAC (`riscv32imac-unknown-none-elf`, QEMU `virt`; no FPU either), and for the
+//! host at the x86-64 baseline (SSE2, no FMA); runs each (QEMU with `-icount
+//! shift=0`, bounded time, the three side by side), parses the reports and checks, for
+//! both maps compiled with both model families (GraphSPN and tree mixture) and all
+//! four entry points:
 //!
-//! - both MCU builds give exactly the bits of the host's baseline build (same
-//!   arithmetic: separate multiply and add, `libm` for exp/ln);
+//! - every MCU build gives exactly the bits of the host's baseline build (same
+//!   arithmetic: separate multiply and add, `libm` for exp/ln; hardware or
+//!   soft-float, IEEE 754 single precision rounds alike);
 //! - agreement with the host build of the same module in this process
 //!   (`graphspn-generated`, built for x86-64-v3 by `.cargo/config.toml`: its `wide`
 //!   vectors use fused multiply-adds, so its bits differ in the last places; the
@@ -18,9 +21,9 @@
 //!   class, then more for another, then the first again) on the target: its
 //!   log-likelihood is that of the product of every observation and the place's
 //!   marginal that of an `f64` log-domain reference (no class underflows or locks);
-//! - peak stack per call ≤ the bound below, statics + stack ≤ the board's 128 KiB;
-//! - the tree mixture of the 230-place map on Cortex-M4F: `marginals` ≤ 2 M
-//!   instructions, every call ≤ 16 KiB of stack, `STATE_BYTES` ≤ 64 KiB;
+//! - peak stack per call ≤ the bound below, statics + stack ≤ the 128 KiB of RAM;
+//! - the tree mixture of the 230-place map: on every target every call ≤ 16 KiB of
+//!   stack and `STATE_BYTES` ≤ 64 KiB; on Cortex-M4F `marginals` ≤ 2 M instructions;
 //! - the instruction counter is exact to a few instructions on a loop of known size.
 //!
 //! The no-panic link check of `generated_no_std.rs` runs here for
@@ -85,16 +88,58 @@ fn stack_bounds(name: &str) -> [usize; 5] {
     ]
 }
 
-/// RAM of the STM32F405 as QEMU's `netduinoplus2` models it (and of the firmware's
-/// RISC-V memory map), bytes.
+/// RAM of the firmware's linker scripts, bytes: `memory.x` (the STM32F205's SRAM as
+/// QEMU's `netduino2` models it, and the STM32F405's main SRAM, of which
+/// `netduinoplus2` models 192 KiB) and `rv32.x`.
 const RAM_BYTES: usize = 128 * 1024;
-/// Longest a firmware run may take under QEMU (RISC-V takes about 10 s).
+/// Longest a firmware run may take under QEMU (RISC-V and Cortex-M3 take about
+/// 10 s, Cortex-M4F 2 s).
 const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
 /// Relative tolerance of log-likelihoods and MPE values, absolute of marginals.
 const TOL: f64 = 1e-4;
 
-const THUMB: &str = "thumbv7em-none-eabihf";
-const RISCV: &str = "riscv32imac-unknown-none-elf";
+/// An MCU target of the firmware and how QEMU runs it (the board
+/// `scripts/mcu-run.sh` chooses).
+struct Mcu {
+    target: &'static str,
+    /// The emulator and its machine (`-M`).
+    qemu: &'static str,
+    machine: &'static str,
+    /// Further arguments: firmware loading and where the output goes.
+    args: &'static [&'static str],
+}
+
+/// Cortex-M output: semihosting to QEMU's stdout.
+const SEMIHOSTING: &[&str] = &[
+    "-semihosting-config",
+    "enable=on,target=native",
+    "-serial",
+    "null",
+];
+/// Cortex-M4F: STM32F405 with FPU.
+const M4F: Mcu = Mcu {
+    target: "thumbv7em-none-eabihf",
+    qemu: "qemu-system-arm",
+    machine: "netduinoplus2",
+    args: SEMIHOSTING,
+};
+/// Cortex-M3: STM32F205 without FPU (soft-float calls).
+const M3: Mcu = Mcu {
+    target: "thumbv7m-none-eabi",
+    qemu: "qemu-system-arm",
+    machine: "netduino2",
+    args: SEMIHOSTING,
+};
+/// RV32IMAC (no FPU either): output on the UART.
+const RV32: Mcu = Mcu {
+    target: "riscv32imac-unknown-none-elf",
+    qemu: "qemu-system-riscv32",
+    machine: "virt",
+    args: &["-bios", "none", "-serial", "stdio"],
+};
+/// Every MCU target the firmware is built for and checked on.
+const MCUS: [&Mcu; 3] = [&M4F, &M3, &RV32];
+
 const HOST: &str = "x86_64-unknown-linux-gnu";
 const SETUP: &str = "bash scripts/setup-mcu.sh";
 
@@ -394,40 +439,17 @@ fn run_bounded(mut cmd: Command, what: &str) -> String {
     out
 }
 
-/// Runs the firmware built for `target` (profile `profile`) under QEMU.
-fn run_qemu(target: &str, profile: &str) -> Report {
-    let kernel = elf(target, profile);
-    let mut cmd = match target {
-        THUMB => {
-            let mut c = qemu("qemu-system-arm");
-            c.args([
-                "-M",
-                "netduinoplus2",
-                "-semihosting-config",
-                "enable=on,target=native",
-            ]);
-            c.args(["-serial", "null"]);
-            c
-        }
-        RISCV => {
-            let mut c = qemu("qemu-system-riscv32");
-            c.args(["-M", "virt", "-bios", "none", "-serial", "stdio"]);
-            c
-        }
-        _ => unreachable!(),
-    };
-    cmd.args([
-        "-nographic",
-        "-monitor",
-        "none",
-        "-icount",
-        "shift=0",
-        "-kernel",
-    ])
-    .arg(&kernel);
+/// Runs the firmware built for `mcu` (profile `profile`) under QEMU.
+fn run_qemu(mcu: &Mcu, profile: &str) -> Report {
+    let kernel = elf(mcu.target, profile);
+    let mut cmd = qemu(mcu.qemu);
+    cmd.args(["-M", mcu.machine]).args(mcu.args);
+    cmd.args(["-nographic", "-monitor", "none", "-icount", "shift=0"])
+        .arg("-kernel")
+        .arg(&kernel);
     parse(&run_bounded(
         cmd,
-        &format!("QEMU {target} {}", kernel.display()),
+        &format!("QEMU {} {}", mcu.target, kernel.display()),
     ))
 }
 
@@ -918,9 +940,10 @@ fn check_stream(target: &str, m: &MapReport, host: &HostStream) {
     }
 }
 
-/// The tree mixture of the 230-place map fits a small microcontroller: on Cortex-M4F
-/// `marginals` takes at most 2 M instructions, every call at most 16 KiB of stack, and
-/// the streaming state at most 64 KiB (the generator's figure is the module's).
+/// The tree mixture of the 230-place map fits a small microcontroller: every call
+/// takes at most 16 KiB of stack and the streaming state at most 64 KiB (the
+/// generator's figure is the module's); on Cortex-M4F `marginals` takes at most 2 M
+/// instructions (the other targets have no FPU).
 fn check_tree_acceptance(target: &str, r: &Report) {
     let m = r
         .maps
@@ -944,7 +967,7 @@ fn check_tree_acceptance(target: &str, r: &Report) {
             c.stack
         );
     }
-    if target == THUMB {
+    if target == M4F.target {
         let marginals = m.calls[1].instructions;
         assert!(
             marginals <= 2_000_000,
@@ -969,9 +992,10 @@ fn median_instructions(m: &MapReport, name: &str) -> u64 {
 fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
     let start = Instant::now();
     // Fail early, naming the setup script, if QEMU is missing.
-    drop(qemu("qemu-system-arm"));
-    drop(qemu("qemu-system-riscv32"));
-    build_firmware(&[THUMB, RISCV], "release", None);
+    for mcu in MCUS {
+        drop(qemu(mcu.qemu));
+    }
+    build_firmware(&MCUS.map(|m| m.target), "release", None);
     // The host build of the same scalar code (Rust never fuses a multiply and an
     // add, so the workspace's x86-64-v3 flags change no result bit).
     build_firmware(&[HOST], "release", None);
@@ -980,17 +1004,19 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         Command::new(elf(HOST, "release")),
         "host baseline firmware",
     ));
-    for target in [THUMB, RISCV] {
+    for target in MCUS.map(|m| m.target) {
         let data = section_bytes(&elf(target, "release"), ".data");
         assert!(
             data <= 1024,
             "{target}: {data} bytes of .data: the firmware's states and buffers (all zero at start) belong in .bss"
         );
     }
-    let reports = [
-        (THUMB, run_qemu(THUMB, "release")),
-        (RISCV, run_qemu(RISCV, "release")),
-    ];
+    // Side by side: each run is single-threaded, and `-icount` counts are exact
+    // whatever else the machine runs.
+    let reports = std::thread::scope(|s| {
+        MCUS.map(|mcu| s.spawn(move || (mcu.target, run_qemu(mcu, "release"))))
+            .map(|run| run.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+    });
     let hosts = [
         host_answers!(demo_floor, 0),
         host_answers!(saarbrucken_seq2_night1, 1),
@@ -1104,7 +1130,8 @@ const HOST_ONLY_CRATES: &[&str] = &[
 fn firmware_build_dependencies_have_no_host_only_crates() {
     let out = Command::new(env!("CARGO"))
         .current_dir(root().join("firmware"))
-        .args(["tree", "--quiet", "--target", THUMB, "-e", "normal,build"])
+        .args(["tree", "--quiet", "--target", M4F.target])
+        .args(["-e", "normal,build"])
         .args(["--prefix", "none", "--format", "{p} {f}"])
         .output()
         .unwrap();
@@ -1133,7 +1160,7 @@ fn firmware_build_dependencies_have_no_host_only_crates() {
 #[test]
 fn generated_code_links_for_cortex_m4f_without_any_panic_path() {
     setup();
-    no_panic_probe::link_check(Some(THUMB));
+    no_panic_probe::link_check(Some(M4F.target));
 }
 
 #[test]

@@ -6,7 +6,9 @@
 //! Targets (see `../README.md`, "Firmware"):
 //! - `thumbv7em-none-eabihf`: Cortex-M4F on QEMU's `netduinoplus2` (STM32F405,
 //!   1 MiB flash, 128 KiB RAM), cortex-m-rt, output through semihosting,
-//!   instructions from SysTick under `-icount shift=0`;
+//!   instructions from SysTick under `-icount shift=0` (`armv7m.rs`);
+//! - `thumbv7m-none-eabi`: Cortex-M3 (no FPU: soft-float calls) on QEMU's
+//!   `netduino2` (STM32F205, same memory map), otherwise as the Cortex-M4F;
 //! - `riscv32imac-unknown-none-elf`: QEMU `virt`, a hand-written start (`rv32.rs`),
 //!   output on the 16550 UART, instructions from `minstret`;
 //! - the host (a plain `std` program, no counts): the reference for bit-for-bit
@@ -35,9 +37,9 @@ mod calls;
 mod evidence;
 
 #[cfg(all(target_arch = "arm", target_os = "none"))]
-mod cortex_m4;
+mod armv7m;
 #[cfg(all(target_arch = "arm", target_os = "none"))]
-use cortex_m4 as platform;
+use armv7m as platform;
 #[cfg(not(target_os = "none"))]
 mod host;
 #[cfg(not(target_os = "none"))]

@@ -1,10 +1,13 @@
-//! Cortex-M4F on QEMU `netduinoplus2`: cortex-m-rt start, semihosting output,
-//! instruction counts from SysTick.
+//! Cortex-M on QEMU: Cortex-M4F (`thumbv7em-none-eabihf`) on `netduinoplus2`,
+//! Cortex-M3 (`thumbv7m-none-eabi`, no FPU: every float operation is a soft-float
+//! call) on `netduino2`. cortex-m-rt start, semihosting output, instruction counts
+//! from SysTick.
 //!
 //! Under `-icount shift=0` QEMU advances its virtual clock by exactly 1 ns per
-//! executed instruction, and SysTick (clock source: the core clock, 168 MHz on this
-//! board) counts 0.168 ticks per ns: instructions = ticks · 125 / 21, to within
-//! ±6 instructions. [`calibrate`] checks that relation on a loop of known length.
+//! executed instruction, and SysTick (clock source: the core clock, [`CORE_HZ`])
+//! counts `CORE_HZ` / 10⁹ ticks per ns: instructions = ticks · 10⁹ / `CORE_HZ`
+//! (125 / 21 at 168 MHz, 25 / 3 at 120 MHz), to within a tick (±6 and ±9
+//! instructions). [`calibrate`] checks that relation on a loop of known length.
 
 use core::arch::asm;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -18,7 +21,31 @@ use crate::Measured;
 use crate::calls::CallResult;
 
 /// Name printed in the report's first line.
+#[cfg(target_abi = "eabihf")]
 pub const TARGET: &str = "thumbv7em-none-eabihf";
+/// Name printed in the report's first line.
+#[cfg(not(target_abi = "eabihf"))]
+pub const TARGET: &str = "thumbv7m-none-eabi";
+
+/// Core clock of the board QEMU models (its fixed SYSCLK), Hz: the STM32F405 of
+/// `netduinoplus2` (hard-float ABI, chosen by `scripts/mcu-run.sh`).
+#[cfg(target_abi = "eabihf")]
+const CORE_HZ: u64 = 168_000_000;
+/// Core clock of the board QEMU models (its fixed SYSCLK), Hz: the STM32F205 of
+/// `netduino2` (soft-float ABI, chosen by `scripts/mcu-run.sh`).
+#[cfg(not(target_abi = "eabihf"))]
+const CORE_HZ: u64 = 120_000_000;
+
+const fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
+/// Instructions per tick as the fraction `NS_PER_TICK.0 / NS_PER_TICK.1` (1 ns per
+/// instruction), reduced so that `ticks · numerator` cannot overflow.
+const NS_PER_TICK: (u64, u64) = {
+    let g = gcd(1_000_000_000, CORE_HZ);
+    (1_000_000_000 / g, CORE_HZ / g)
+};
 
 /// SysTick reload value (24 bits); every wrap raises the SysTick exception.
 const RELOAD: u32 = 0x00FF_FFFF;
@@ -44,9 +71,10 @@ fn ticks() -> u64 {
     }
 }
 
-/// Instructions executed in `ticks` SysTick ticks (see the module doc).
+/// Instructions executed in `ticks` SysTick ticks, rounded (see the module doc).
 fn instructions(ticks: u64) -> u64 {
-    (ticks * 125 + 10) / 21
+    let (num, den) = NS_PER_TICK;
+    (ticks * num + den / 2) / den
 }
 
 /// Runs a loop of exactly 2²¹ instructions (2²⁰ × `subs`, `bne`) and returns
