@@ -316,6 +316,9 @@ pub trait Real:
     fn exp(self) -> Self;
     /// Neither NaN nor infinite.
     fn is_finite(self) -> bool;
+    /// `(finite and ≥ +0, > 0)` from the bit pattern alone (integer compares, no float
+    /// compare: cheap without an FPU). `-0.0` reads as not `≥ +0`.
+    fn plain_mass(self) -> (bool, bool);
     /// `(m, e)` with `self = m·2^e` exactly and `m` in `[1, 2)`; zero, infinite and NaN
     /// values are returned unchanged with `e = 0`, subnormals are normalised.
     fn split(self) -> (Self, i32);
@@ -376,6 +379,12 @@ macro_rules! real_impl {
             #[inline(always)]
             fn is_finite(self) -> bool {
                 $t::is_finite(self)
+            }
+            #[inline(always)]
+            fn plain_mass(self) -> (bool, bool) {
+                // Sign clear and exponent below all-ones; nonzero on top of that.
+                let (b, inf) = (self.to_bits(), ($emask as $bits) << $mant);
+                (b < inf, b.wrapping_sub(1) < inf - 1)
             }
             #[inline(always)]
             fn split(self) -> ($t, i32) {
