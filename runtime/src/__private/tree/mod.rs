@@ -386,25 +386,6 @@ impl<V: Lanes, const K: usize, const N: usize> Factors<V, K> for Cached<'_, V, K
     }
 }
 
-/// The factor source the passes use: [`Rows`], or on SIMD hosts the [`Cached`] `φ` of
-/// every place (static dispatch: `factor` inlines into the passes).
-pub(crate) struct Src<'a, V: Lanes, const C: usize, const K: usize, const N: usize> {
-    pub rows: Rows<'a, V, C, K, N>,
-    pub cache: Option<Cached<'a, V, K, N>>,
-}
-
-impl<V: Lanes, const C: usize, const K: usize, const N: usize> Factors<V, K>
-    for Src<'_, V, C, K, N>
-{
-    #[inline(always)]
-    fn factor(&self, v: usize) -> ([V; K], i32) {
-        match &self.cache {
-            Some(c) if V::WIDTH > 1 => c.factor(v),
-            _ => self.rows.factor(v),
-        }
-    }
-}
-
 impl<V: Lanes, const C: usize, const K: usize, const N: usize> Rows<'_, V, C, K, N> {
     /// Every place's `φ` into `phi` and `exp` (for [`Cached`]).
     #[inline(never)]
@@ -418,8 +399,8 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize> Rows<'_, V, C, K,
 /// The belief of place `v` in forest `f`: `φ_v ⊙ Π_children m_c` with the children's
 /// messages from `msgs`, normalised (flushed after every factor), and its exponent.
 #[inline(always)]
-pub(crate) fn belief<V: Lanes, S: Factors<V, K>, const K: usize, const N: usize>(
-    src: &S,
+pub(crate) fn belief<V: Lanes, const K: usize, const N: usize>(
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     msgs: &[[V; K]; N],
     v: usize,

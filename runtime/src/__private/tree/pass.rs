@@ -6,8 +6,8 @@
 
 use super::super::{Acc, Lanes, Real, above, best, mix};
 use super::{
-    Cached, Factors, Forest, Rows, Src, TreeModel, argmax, argvec, belief, hmax, hsum, matvec,
-    maxvec, mul, norm, norm_flush,
+    Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec,
+    mul, norm, norm_flush,
 };
 use crate::EvidenceError;
 
@@ -19,39 +19,35 @@ pub(crate) fn over_z<T: Real>(mut acc: Acc<T>, k: i32, f: &Forest<T>) -> Acc<T> 
     acc
 }
 
-/// Runs `body` with the factor source of the target: every `φ` computed once, on the
-/// stack ([`Cached`]) on SIMD hosts, computed where needed ([`Rows`]) on
-/// microcontrollers.
+/// Runs `body` with the factor source of the target: [`Cached`] (every `φ` computed
+/// once, on the stack) on SIMD hosts, [`Rows`] on microcontrollers.
 #[inline(always)]
 pub(crate) fn with_factors<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
     m: &TreeModel<V, C, K>,
     e: &[[V::Scalar; C]; N],
     labels: Option<&[u16; N]>,
-    body: impl FnOnce(&Src<'_, V, C, K, N>) -> R,
+    body: impl FnOnce(&dyn Factors<V, K>) -> R,
 ) -> R {
     let rows = Rows { m, e, labels };
     if V::WIDTH > 1 {
-        cached(rows, body)
+        cached(&rows, body)
     } else {
-        body(&Src { rows, cache: None })
+        body(&rows)
     }
 }
 
 /// [`with_factors`] on SIMD hosts (its own frame holds the cache).
 #[inline(never)]
 fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
-    rows: Rows<'_, V, C, K, N>,
-    body: impl FnOnce(&Src<'_, V, C, K, N>) -> R,
+    rows: &Rows<'_, V, C, K, N>,
+    body: impl FnOnce(&dyn Factors<V, K>) -> R,
 ) -> R {
     let mut phi = [[V::ZERO; K]; N];
     let mut exp = [0i32; N];
     rows.fill(&mut phi, &mut exp);
-    body(&Src {
-        rows,
-        cache: Some(Cached {
-            phi: &phi,
-            exp: &exp,
-        }),
+    body(&Cached {
+        phi: &phi,
+        exp: &exp,
     })
 }
 
@@ -62,8 +58,8 @@ fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
 /// multiplied into the parent's belief. Returns the sum of the exponents of every
 /// normalisation.
 #[inline(always)]
-fn sweep<V: Lanes, S: Factors<V, K>, const K: usize, const H: usize>(
-    src: &S,
+fn sweep<V: Lanes, const K: usize, const H: usize>(
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     mut message: impl FnMut(usize, &[V; K]) -> [V; K],
     mut root: impl FnMut(usize, &[V; K]),
@@ -106,14 +102,14 @@ fn sweep<V: Lanes, S: Factors<V, K>, const K: usize, const H: usize>(
 /// `P_t(α)`, the value of forest `f` (`max`: the max-product value `max_y P_t(y) Π
 /// α^γ`), in one post-order sweep with a stack of `H` rows.
 #[inline(never)]
-fn tree_value<V: Lanes, S: Factors<V, K>, const C: usize, const K: usize, const H: usize>(
+fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
     m: &TreeModel<V, C, K>,
-    src: &S,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     max: bool,
 ) -> Acc<V::Scalar> {
     let mut acc = Acc::ONE;
-    let k = sweep::<V, _, K, H>(
+    let k = sweep::<V, K, H>(
         src,
         f,
         |_, b| {
@@ -130,21 +126,14 @@ fn tree_value<V: Lanes, S: Factors<V, K>, const C: usize, const K: usize, const 
 
 /// The values of every forest (see [`tree_value`]).
 #[inline(always)]
-fn values<
-    V: Lanes,
-    S: Factors<V, K>,
-    const C: usize,
-    const K: usize,
-    const H: usize,
-    const T: usize,
->(
+fn values<V: Lanes, const C: usize, const K: usize, const H: usize, const T: usize>(
     m: &TreeModel<V, C, K>,
-    src: &S,
+    src: &dyn Factors<V, K>,
     max: bool,
 ) -> [Acc<V::Scalar>; T] {
     let mut accs = [Acc::ONE; T];
     for (a, f) in accs.iter_mut().zip(m.forests) {
-        *a = tree_value::<V, _, C, K, H>(m, src, f, max);
+        *a = tree_value::<V, C, K, H>(m, src, f, max);
     }
     accs
 }
@@ -164,7 +153,7 @@ pub fn tree_log_likelihood<
     labels: &[u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
     let accs = with_factors(m, e, Some(labels), |src| {
-        values::<V, _, C, K, H, T>(m, src, false)
+        values::<V, C, K, H, T>(m, src, false)
     });
     match mix(&accs) {
         Some((l, _)) if l > V::Scalar::NEG_INFINITY => Ok(l),
@@ -177,15 +166,9 @@ pub fn tree_log_likelihood<
 /// place's exponent; returns the product of the roots' sums and the sum of the
 /// exponents (the forest's value over `Z_t` is their product over `Z_t`).
 #[inline(never)]
-pub(crate) fn tree_upward<
-    V: Lanes,
-    S: Factors<V, K>,
-    const C: usize,
-    const K: usize,
-    const N: usize,
->(
+pub(crate) fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usize>(
     m: &TreeModel<V, C, K>,
-    src: &S,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     msgs: &mut [[V; K]; N],
     mut exps: Option<&mut [i32; N]>,
@@ -240,15 +223,9 @@ fn without<V: Lanes, const C: usize, const K: usize>(
 /// `[2^-20, 2)`, so its entries lie in `[2^-21, C·2^21)` and every nonzero product with
 /// the belief stays far inside the normal range.
 #[inline(always)]
-pub(crate) fn full_below<
-    V: Lanes,
-    S: Factors<V, K>,
-    const C: usize,
-    const K: usize,
-    const N: usize,
->(
+pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usize>(
     m: &TreeModel<V, C, K>,
-    src: &S,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     msgs: &[[V; K]; N],
     v: usize,
@@ -287,14 +264,13 @@ pub(crate) fn add_marginal<V: Lanes, const K: usize, const C: usize>(
 #[inline(never)]
 pub(crate) fn tree_downward<
     V: Lanes,
-    S: Factors<V, K>,
     const C: usize,
     const K: usize,
     const N: usize,
     const H: usize,
 >(
     m: &TreeModel<V, C, K>,
-    src: &S,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     msgs: &[[V; K]; N],
     w: V::Scalar,
@@ -351,7 +327,7 @@ pub fn tree_marginals<
 ) -> Result<V::Scalar, EvidenceError> {
     *out = [[V::Scalar::ZERO; C]; N];
     let accs = with_factors(m, e, None, |src| {
-        marginals_from::<V, _, C, K, N, H, T>(m, src, out)
+        marginals_from::<V, C, K, N, H, T>(m, src, out)
     });
     let Some((l, _)) = mix(&accs).filter(|(l, _)| *l > V::Scalar::NEG_INFINITY) else {
         return Err(EvidenceError::ZeroLikelihood);
@@ -364,7 +340,6 @@ pub fn tree_marginals<
 #[inline(always)]
 fn marginals_from<
     V: Lanes,
-    S: Factors<V, K>,
     const C: usize,
     const K: usize,
     const N: usize,
@@ -372,7 +347,7 @@ fn marginals_from<
     const T: usize,
 >(
     m: &TreeModel<V, C, K>,
-    src: &S,
+    src: &dyn Factors<V, K>,
     out: &mut [[V::Scalar; C]; N],
 ) -> [Acc<V::Scalar>; T] {
     let one = V::Scalar::ONE;
@@ -406,7 +381,7 @@ fn marginals_from<
                 }
             }
         };
-        tree_downward::<V, _, C, K, N, H>(m, src, f, &msgs, w, out);
+        tree_downward::<V, C, K, N, H>(m, src, f, &msgs, w, out);
     }
     accs
 }
@@ -415,21 +390,14 @@ fn marginals_from<
 /// `arg[v][a]` (the best class of `v` when its parent has class `a`), then labels
 /// top-down.
 #[inline(never)]
-fn mpe_labels<
-    V: Lanes,
-    S: Factors<V, K>,
-    const C: usize,
-    const K: usize,
-    const N: usize,
-    const H: usize,
->(
+fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H: usize>(
     m: &TreeModel<V, C, K>,
-    src: &S,
+    src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     labels: &mut [u16; N],
 ) {
     let mut arg = [[0u8; C]; N];
-    sweep::<V, _, K, H>(
+    sweep::<V, K, H>(
         src,
         f,
         |v, b| match arg.get_mut(v) {
@@ -475,7 +443,7 @@ pub fn tree_mpe<
     labels: &mut [u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
     with_factors(m, e, None, |src| {
-        let accs = values::<V, _, C, K, H, T>(m, src, true);
+        let accs = values::<V, C, K, H, T>(m, src, true);
         let (Some(t), Some(f)) = (best(&accs), best(&accs).and_then(|t| m.forests.get(t))) else {
             return Err(EvidenceError::ZeroLikelihood);
         };
@@ -484,7 +452,7 @@ pub fn tree_mpe<
         if !above(v, V::Scalar::NEG_INFINITY) {
             return Err(EvidenceError::ZeroLikelihood);
         }
-        mpe_labels::<V, _, C, K, N, H>(m, src, f, labels);
+        mpe_labels::<V, C, K, N, H>(m, src, f, labels);
         Ok(v)
     })
 }

@@ -30,7 +30,7 @@ use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, ln_shift, mix
 use super::pass::{
     add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
 };
-use super::{Forest, Rows, Src, TreeModel, belief, hsum, matvec, norm};
+use super::{Forest, Rows, TreeModel, belief, hsum, matvec, norm};
 use crate::EvidenceError;
 
 /// The caller-owned cache of a compiled tree mixture (see the module docs); all zeros
@@ -104,20 +104,17 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         &mut self,
         m: &TreeModel<V, C, K>,
         mut each: impl FnMut(
-            &Src<'_, V, C, K, N>,
+            &Rows<'_, V, C, K, N>,
             &Forest<V::Scalar>,
             &mut [[V; K]; N],
             &mut [i32; N],
             &mut i32,
         ),
     ) {
-        let rows = Src {
-            rows: Rows {
-                m,
-                e: &self.rows,
-                labels: None,
-            },
-            cache: None,
+        let rows = Rows {
+            m,
+            e: &self.rows,
+            labels: None,
         };
         for (((f, msgs), exps), tot) in m
             .forests
@@ -314,7 +311,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         *out = [[V::Scalar::ZERO; C]; N];
         with_factors(m, &self.rows, None, |src| {
             for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
-                tree_downward::<V, _, C, K, N, H>(m, src, f, msgs, wt, out);
+                tree_downward::<V, C, K, N, H>(m, src, f, msgs, wt, out);
             }
         });
         normalise_rows(out);
@@ -333,13 +330,10 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         place_id(ids, place)?;
         let (_, w) = self.mixed(m)?;
         *out = [V::Scalar::ZERO; C];
-        let rows = Src {
-            rows: Rows {
-                m,
-                e: &self.rows,
-                labels: None,
-            },
-            cache: None,
+        let rows = Rows {
+            m,
+            e: &self.rows,
+            labels: None,
         };
         for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
             // The path from the place up to its root.
