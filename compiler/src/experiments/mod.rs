@@ -5,12 +5,16 @@
 
 pub use crate::noise as evidence;
 pub mod ceiling;
+pub mod config;
 pub mod error;
 pub mod figures;
+pub mod grid;
 pub mod models;
 pub mod novelty;
+pub mod protocol;
 pub mod report;
 pub mod reproduce;
+pub mod results;
 pub mod sets;
 pub mod settings;
 pub mod stats;

@@ -5,13 +5,13 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::config::ReproduceConfig;
 use super::evidence::{NoiseLevel, PAPER_TABLE1};
 use super::figures::{fig8_panel, pie_panel};
 use super::models::{GRAPHSPN, MODELS, MRF_MODELS, NUM_MODELS, OUR_MODELS, Scores, TREES};
 use super::novelty::{LOCAL_REGIONS, NoveltySet};
-use super::reproduce::{
-    BuildingSetup, Experiment, ReproduceConfig, ReproduceError, Reproduction, run_graph,
-};
+use super::reproduce::{BuildingSetup, ReproduceError, run_graph};
+use super::results::{Experiment, Reproduction};
 use super::sets::{Evaluation, SetRole};
 use super::stats::{ci_seed, fmt_ci, levels_of};
 
