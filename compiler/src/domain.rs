@@ -169,8 +169,8 @@ mod tests {
     #[cfg(feature = "host")]
     #[test]
     fn the_shipped_configurations_are_within_their_domains() {
-        use crate::experiments::reproduce::{ReproduceConfig, check_settings};
-        use crate::experiments::validate::ValidationGrid;
+        use crate::experiments::config::{ReproduceConfig, check_settings};
+        use crate::experiments::grid::ValidationGrid;
         for cfg in [ReproduceConfig::full(0), ReproduceConfig::quick(0)] {
             check_settings(&cfg).unwrap();
         }

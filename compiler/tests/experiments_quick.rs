@@ -5,10 +5,10 @@
 
 use std::path::PathBuf;
 
+use graphspn_compiler::experiments::config::ReproduceConfig;
 use graphspn_compiler::experiments::report::write_outputs;
-use graphspn_compiler::experiments::reproduce::{
-    Experiment, ReproduceConfig, Reproduction, load_data, run,
-};
+use graphspn_compiler::experiments::reproduce::{load_data, run};
+use graphspn_compiler::experiments::results::{Experiment, Reproduction};
 use graphspn_compiler::learn::Progress;
 
 fn data() -> PathBuf {

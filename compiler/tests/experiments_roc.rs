@@ -1,7 +1,7 @@
 //! ROC/AUC and tie-aware accuracy used by the reproduction.
 
 use graphspn_compiler::experiments::novelty::{auc, roc_curve};
-use graphspn_compiler::experiments::reproduce::accuracy;
+use graphspn_compiler::experiments::protocol::accuracy;
 use proptest::prelude::*;
 
 #[test]

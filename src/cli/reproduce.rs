@@ -7,12 +7,13 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::decompose::DecompositionStrategy;
 use graphspn_compiler::domain;
+use graphspn_compiler::experiments::config::ReproduceConfig;
 use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
-use graphspn_compiler::experiments::report::{validation_markdown, write_outputs};
-use graphspn_compiler::experiments::reproduce::{ReproduceConfig, load_data, run};
-use graphspn_compiler::experiments::validate::{
-    DecompositionChoice, ModelSettings, ValidationGrid, validate_for,
-};
+use graphspn_compiler::experiments::grid::ValidationGrid;
+use graphspn_compiler::experiments::report::write_outputs;
+use graphspn_compiler::experiments::reproduce::{load_data, run};
+use graphspn_compiler::experiments::validate::{DecompositionChoice, ModelSettings, validate_for};
+use graphspn_compiler::experiments::validation_report::validation_markdown;
 use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
 use std::collections::BTreeMap;

@@ -5,13 +5,19 @@
 
 pub use crate::noise as evidence;
 pub mod ceiling;
+pub mod config;
 pub mod error;
 pub mod figures;
+pub mod grid;
 pub mod models;
 pub mod novelty;
+pub mod protocol;
 pub mod report;
 pub mod reproduce;
+pub mod result_tables;
+pub mod results;
 pub mod sets;
 pub mod settings;
 pub mod stats;
 pub mod validate;
+pub mod validation_report;

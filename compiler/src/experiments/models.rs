@@ -13,7 +13,7 @@ use serde::de::{MapAccess, Visitor};
 use serde::ser::SerializeMap;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use super::reproduce::ReproduceError;
+use super::error::ReproduceError;
 use super::settings::{GraphSpnSetting, MrfSetting};
 use crate::instance::ComponentInstance;
 use crate::map::TopoMap;

@@ -16,13 +16,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use rand::SeedableRng;
-use rand::seq::index::sample;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
-use super::ceiling::{CeilingRow, placeholder_ceiling};
+use super::ceiling::placeholder_ceiling;
+use super::config::{ReproduceConfig, check_settings};
 pub use super::error::ReproduceError;
 use super::evidence::{
     LevelStats, NoiseLevel, SimulatedEvidence, WrongClassDraw, derive_seed, level_statistics,
@@ -34,188 +31,20 @@ use super::models::{
 use super::novelty::{
     NoveltyResult, NoveltySet, auc, novelty_labellings, novelty_points, within_map_auc,
 };
-use super::settings::{DecompositionChoice, GraphSpnSetting, ModelSettings, MrfSetting};
-use super::validate::{Validation, ValidationGrid, validate_for};
-use crate::decompose::decompose_best;
+use super::protocol::{
+    TAG_EVIDENCE, TAG_NOVELTY, TAG_PICK, TAG_TRAIN, accuracy, build_instance, building_key,
+    pick_maps, train_trees, training_buildings, tree_instance,
+};
+use super::results::{BuildingInfo, Experiment, GraphResult, Reproduction};
+use super::settings::{GraphSpnSetting, ModelSettings, MrfSetting};
+use super::validate::{Validation, validate_for};
 use crate::instance::ComponentInstance;
 use crate::learn::{Model, Progress, TrainingSettings, train_model};
 pub use crate::map::stats::class_prior;
 use crate::map::{ClassId, TopoMap, cold};
-use crate::mrf::{BpOptions, CooccurrenceParams, Mrf2, Mrf3, MrfModel};
+use crate::mrf::{Mrf2, Mrf3, MrfModel};
 use crate::template::Template;
-use crate::treemix::{NoiseFit, TreeInstance, TreeMixture, train_tree_mixture};
-
-/// What to run. [`ReproduceConfig::full`] is the paper's protocol,
-/// [`ReproduceConfig::quick`] a reduced smoke run.
-#[derive(Clone, Debug)]
-pub struct ReproduceConfig {
-    /// Master seed.
-    pub seed: u64,
-    /// Test buildings (each is tested with a model trained on the other buildings,
-    /// or on `train_buildings`).
-    pub test_buildings: Vec<String>,
-    /// Buildings every model is trained (and validated) on; `None`: for each test
-    /// building, all the other buildings (the paper's protocol).
-    pub train_buildings: Option<Vec<String>>,
-    /// Test maps per building (paper: 5), chosen at random (seeded).
-    pub maps_per_building: usize,
-    /// Evidence rounds per map and level (paper: 3).
-    pub rounds: usize,
-    /// Noise levels.
-    pub levels: Vec<NoiseLevel>,
-    /// Settings of the paper-style GraphSPN ("GraphSPN paper"; the seed of its
-    /// training is replaced per building).
-    pub graphspn_paper: GraphSpnSetting,
-    /// Potentials of the paper-style MRFs (raw joint frequencies by default).
-    pub cooccurrence: CooccurrenceParams,
-    /// Loopy BP options of the paper-style MRFs.
-    pub bp: BpOptions,
-    /// The validation search that picks every model's settings on the training
-    /// buildings of each test building (ignored when `settings` is given).
-    pub grid: ValidationGrid,
-    /// Settings chosen beforehand (e.g. a saved validation), one per test
-    /// building; `None` runs the validation.
-    pub settings: Option<BTreeMap<String, ModelSettings>>,
-    /// How wrong evidence classes are drawn (protocol as written, or the paper's effective noise).
-    pub wrong_draw: WrongClassDraw,
-    /// Run the novelty-detection experiment.
-    pub novelty: bool,
-    /// Progress bars.
-    pub progress: Progress,
-}
-
-impl ReproduceConfig {
-    /// The paper's protocol on every map of each test building (the paper used
-    /// 5): 3 buildings, 3 rounds, NL1..6, D = 5 of 15, validated settings.
-    pub fn full(seed: u64) -> Self {
-        ReproduceConfig {
-            seed,
-            test_buildings: cold::BUILDINGS.iter().map(|s| s.to_string()).collect(),
-            train_buildings: None,
-            maps_per_building: usize::MAX,
-            rounds: 3,
-            levels: NoiseLevel::all().to_vec(),
-            graphspn_paper: GraphSpnSetting::paper(),
-            cooccurrence: CooccurrenceParams::default(),
-            bp: BpOptions {
-                max_iterations: 200,
-                ..BpOptions::default()
-            },
-            wrong_draw: WrongClassDraw::Others,
-            novelty: true,
-            grid: ValidationGrid::standard(),
-            settings: None,
-            progress: Progress::Auto,
-        }
-    }
-
-    /// A reduced run: 1 building (Stockholm), 2 maps, NL2 and NL5, 1 round,
-    /// a tiny validation grid.
-    pub fn quick(seed: u64) -> Self {
-        let lv = |l| NoiseLevel::new(l).expect("levels 2 and 5 exist");
-        ReproduceConfig {
-            test_buildings: vec!["Stockholm".into()],
-            maps_per_building: 2,
-            rounds: 1,
-            levels: vec![lv(2), lv(5)],
-            bp: BpOptions {
-                max_iterations: 200,
-                ..BpOptions::default()
-            },
-            grid: ValidationGrid::tiny(),
-            ..ReproduceConfig::full(seed)
-        }
-    }
-}
-
-/// The two inference experiments.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Experiment {
-    /// Every place has evidence; accuracy over all places (Fig. 5).
-    Classification,
-    /// Placeholders get no evidence; accuracy over placeholders only (Table 2).
-    Placeholders,
-}
-
-/// One test graph's result.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct GraphResult {
-    /// Test building.
-    pub building: String,
-    /// Map name.
-    pub map: String,
-    /// Noise level (1..6).
-    pub level: u8,
-    /// Evidence round.
-    pub round: usize,
-    /// Which experiment.
-    pub experiment: Experiment,
-    /// Places scored (all places, or the placeholders).
-    pub scored: usize,
-    /// Accuracy of the evidence's argmax alone (ties split evenly).
-    pub evidence_only: f64,
-    /// Accuracy per model, by model name (ties split evenly).
-    pub accuracy: Scores<f64>,
-    /// Whether loopy BP converged, by MRF name ([`MRF_MODELS`]).
-    pub bp_converged: BTreeMap<String, bool>,
-}
-
-/// Per-building facts.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct BuildingInfo {
-    /// Test building.
-    pub building: String,
-    /// Training buildings.
-    pub trained_on: Vec<String>,
-    /// Test maps chosen (names, sorted).
-    pub test_maps: Vec<String>,
-    /// Seconds spent training GraphSPN.
-    pub train_seconds: f64,
-    /// Seconds spent training the tree mixture (noise-aware fit included).
-    #[serde(default)]
-    pub train_seconds_trees: f64,
-    /// The settings used (chosen by validation on the training buildings).
-    pub settings: ModelSettings,
-}
-
-/// Everything a run measured (written as results.json).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Reproduction {
-    /// Master seed.
-    pub seed: u64,
-    /// Whether the paper's effective noise (wrong class drawn among all classes) was used.
-    pub paper_noise: bool,
-    /// The validation behind every building's settings (empty when settings were given).
-    pub validation: Vec<Validation>,
-    /// Per building.
-    pub buildings: Vec<BuildingInfo>,
-    /// Per test graph.
-    pub graphs: Vec<GraphResult>,
-    /// Novelty experiment.
-    pub novelty: Vec<NoveltyResult>,
-    /// Per novelty set: the area under the ROC curve per model ([`MODELS`] order),
-    /// pooled over maps and buildings (empty when novelty was not run).
-    pub auc: Vec<(NoveltySet, Scores<f64>)>,
-    /// Per novelty set, the within-map ranking: per model, the share of (novel,
-    /// non-novel) labelling pairs of the same map that the model ranks correctly
-    /// (ties ½), averaged over maps.
-    pub within_map: Vec<(NoveltySet, Scores<f64>)>,
-    /// Per test building: how well an oracle knowing every explored place's true class
-    /// labels the placeholders from their neighbourhood ([`super::ceiling`]).
-    #[serde(default)]
-    pub ceiling: Vec<CeilingRow>,
-    /// Table 1 statistics of the evidence simulated on the test maps:
-    /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
-    pub table1: Vec<(u8, f64, f64, f64, f64)>,
-    /// Wall-clock seconds of the whole run (filled by the caller).
-    pub seconds: f64,
-    /// For an evaluation of a user's map sets (`graphspn evaluate`, filled by the
-    /// caller): which set is which. `None` for a reproduction on the COLD buildings;
-    /// the report then compares with the paper.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub evaluation: Option<super::sets::Evaluation>,
-}
+use crate::treemix::{TreeInstance, TreeMixture};
 
 /// A trained test setup for one building.
 pub struct BuildingSetup {
@@ -250,68 +79,6 @@ pub struct BuildingSetup {
     /// Facts for the report.
     pub info: BuildingInfo,
 }
-
-/// The seed key of a building (a named group of maps): its index in
-/// [`cold::BUILDINGS`] for the COLD buildings, else a stable hash of its name
-/// (FNV-1a, above 1,000), so every random step of a run is reproducible whatever
-/// the buildings are called.
-pub fn building_key(name: &str) -> u64 {
-    if let Some(i) = cold::BUILDINGS.iter().position(|x| *x == name) {
-        return i as u64;
-    }
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in name.bytes() {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    1000 + (h >> 24)
-}
-
-/// The buildings `test_building`'s models are trained on: `cfg.train_buildings`
-/// when given, else every other building of `all`. Errors when one is missing from
-/// `all` or is the test building itself.
-pub fn training_buildings(
-    all: &BTreeMap<String, Vec<TopoMap>>,
-    test_building: &str,
-    cfg: &ReproduceConfig,
-) -> Result<Vec<String>, ReproduceError> {
-    let names: Vec<String> = match &cfg.train_buildings {
-        Some(t) => t.clone(),
-        None => all
-            .keys()
-            .filter(|k| k.as_str() != test_building)
-            .cloned()
-            .collect(),
-    };
-    for n in &names {
-        if n == test_building {
-            return Err(ReproduceError::Config(format!(
-                "building {n:?} is both a training and the test building"
-            )));
-        }
-        if !all.contains_key(n) {
-            return Err(ReproduceError::Config(format!(
-                "no maps for training building {n:?}"
-            )));
-        }
-    }
-    if names.is_empty() {
-        return Err(ReproduceError::Config(format!(
-            "no training building for test building {test_building:?}"
-        )));
-    }
-    Ok(names)
-}
-
-/// Seed tags, so different kinds of random steps never share a seed.
-const TAG_PICK: u64 = 1;
-const TAG_TRAIN: u64 = 2;
-const TAG_DECOMPOSE: u64 = 3;
-const TAG_EVIDENCE: u64 = 4;
-const TAG_NOVELTY: u64 = 6;
-const TAG_TREES: u64 = 7;
-/// Seed tag of the validation's random steps.
-pub(crate) const TAG_VALIDATE: u64 = 5;
 
 /// Trains the three models for `test_building` on the other buildings' maps in
 /// `all` (building name → maps), picks the test maps and builds their instances.
@@ -403,109 +170,6 @@ pub fn setup_building(
         tree_instances,
         info,
     })
-}
-
-/// The tree mixture of `settings` trained on `maps`, its noise-aware fit (if any)
-/// seeded by `(seed, TAG_TREES, b)`.
-pub(crate) fn train_trees(
-    maps: &[TopoMap],
-    settings: &crate::treemix::TreeTraining,
-    seed: u64,
-    b: u64,
-    what: &str,
-) -> Result<TreeMixture, ReproduceError> {
-    let mut s = settings.clone();
-    if let Some(fit) = &mut s.fit {
-        *fit = NoiseFit {
-            seed: derive_seed(seed, &[TAG_TREES, b]),
-            ..*fit
-        };
-    }
-    train_tree_mixture(maps, &s).map_err(|source| ReproduceError::Trees {
-        what: format!("training for {what}"),
-        source,
-    })
-}
-
-/// The tree-mixture instance of `map` (no evidence), its forests seeded by
-/// `(seed, TAG_DECOMPOSE, b, m)` like GraphSPN's decompositions.
-pub(crate) fn tree_instance(
-    model: &TreeMixture,
-    map: &TopoMap,
-    seed: u64,
-    b: u64,
-    m: u64,
-) -> Result<TreeInstance, ReproduceError> {
-    TreeInstance::with_covering_trees(model, map, derive_seed(seed, &[TAG_DECOMPOSE, b, m]))
-        .map_err(|source| ReproduceError::Trees {
-            what: map.name.clone(),
-            source,
-        })
-}
-
-/// `count` maps of `candidates` chosen at random (seeded by `(seed, tag, b)`),
-/// in their original order; all of them when `count ≥ candidates.len()`.
-pub(crate) fn pick_maps(
-    candidates: &[TopoMap],
-    count: usize,
-    seed: u64,
-    b: u64,
-    tag: u64,
-) -> Result<Vec<TopoMap>, String> {
-    if count == 0 || candidates.is_empty() {
-        return Err(format!(
-            "{} maps available, {count} requested",
-            candidates.len()
-        ));
-    }
-    if count >= candidates.len() {
-        return Ok(candidates.to_vec());
-    }
-    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[tag, b]));
-    let mut picked = sample(&mut rng, candidates.len(), count).into_vec();
-    picked.sort_unstable();
-    Ok(picked.iter().map(|&i| candidates[i].clone()).collect())
-}
-
-/// The instance GraphSPN of `map` (component-wise evaluator, no evidence) mixing
-/// the decompositions `dc` asks for, seeded by `(seed, TAG_DECOMPOSE, b, m)`.
-pub(crate) fn build_instance(
-    model: &Model,
-    map: &TopoMap,
-    dc: &DecompositionChoice,
-    seed: u64,
-    b: u64,
-    m: u64,
-) -> Result<ComponentInstance, ReproduceError> {
-    let params = dc.params(derive_seed(seed, &[TAG_DECOMPOSE, b, m]));
-    let decs = decompose_best(map, &model.templates, &params).map_err(|source| {
-        ReproduceError::Decompose {
-            map: map.name.clone(),
-            source,
-        }
-    })?;
-    ComponentInstance::build(model, map, decs).map_err(|source| ReproduceError::Inference {
-        map: map.name.clone(),
-        source,
-    })
-}
-
-/// Accuracy of `probs` against `truth` over the places in `scored`; a place
-/// whose maximum is shared by `k` classes counts `1/k` if the truth is among them.
-pub fn accuracy(probs: &[Vec<f64>], truth: &[ClassId], scored: &[usize]) -> f64 {
-    if scored.is_empty() {
-        return f64::NAN;
-    }
-    let mut hits = 0.0;
-    for &i in scored {
-        let row = &probs[i];
-        let max = row.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        let ties = row.iter().filter(|&&v| v == max).count();
-        if row[truth[i] as usize] == max {
-            hits += 1.0 / ties as f64;
-        }
-    }
-    hits / scored.len() as f64
 }
 
 /// The full outcome of one test graph (kept for figures).
@@ -709,31 +373,6 @@ pub fn load_data(data: &Path) -> Result<BTreeMap<String, Vec<TopoMap>>, Reproduc
                 })
         })
         .collect()
-}
-
-/// Every setting `cfg` holds against its documented domain ([`crate::domain`]), before
-/// any work: the rounds and maps per building, the settings given per test building,
-/// the paper-style models' and every candidate of the validation grid.
-pub fn check_settings(cfg: &ReproduceConfig) -> Result<(), ReproduceError> {
-    let bad =
-        |what: &str, e: crate::domain::DomainError| ReproduceError::Config(format!("{what}: {e}"));
-    crate::domain::rounds("rounds", cfg.rounds).map_err(|e| bad("protocol", e))?;
-    crate::domain::maps("maps_per_building", cfg.maps_per_building)
-        .map_err(|e| bad("protocol", e))?;
-    if let Some(given) = &cfg.settings {
-        for (b, s) in given {
-            s.check()
-                .map_err(|e| bad(&format!("settings of test building {b}"), e))?;
-        }
-    }
-    cfg.graphspn_paper
-        .check()
-        .map_err(|e| bad("paper-style GraphSPN", e))?;
-    cfg.cooccurrence
-        .check()
-        .map_err(|e| bad("paper-style MRF potentials", e))?;
-    cfg.bp.check().map_err(|e| bad("paper-style MRF BP", e))?;
-    cfg.grid.check().map_err(|e| bad("validation grid", e))
 }
 
 /// Runs every experiment of `cfg` on the maps in `all`; returns the results

@@ -3,7 +3,7 @@
 
 use super::evidence::derive_seed;
 use super::models::{MRF2, MRF3};
-use super::reproduce::{Experiment, GraphResult, Reproduction};
+use super::results::{Experiment, GraphResult, Reproduction};
 
 /// Mean and (population) standard deviation of the finite values, or `None`.
 pub fn mean_std(v: &[f64]) -> Option<(f64, f64)> {

@@ -1,0 +1,103 @@
+//! What a run measured, as written to results.json ([`Reproduction`]): one
+//! [`GraphResult`] per test graph and [`Experiment`], the facts of each test building
+//! ([`BuildingInfo`]), and the validation, novelty, ceiling and evidence statistics.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::ceiling::CeilingRow;
+use super::models::Scores;
+use super::novelty::{NoveltyResult, NoveltySet};
+use super::settings::ModelSettings;
+use super::validate::Validation;
+
+/// The two inference experiments.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Experiment {
+    /// Every place has evidence; accuracy over all places (Fig. 5).
+    Classification,
+    /// Placeholders get no evidence; accuracy over placeholders only (Table 2).
+    Placeholders,
+}
+
+/// One test graph's result.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GraphResult {
+    /// Test building.
+    pub building: String,
+    /// Map name.
+    pub map: String,
+    /// Noise level (1..6).
+    pub level: u8,
+    /// Evidence round.
+    pub round: usize,
+    /// Which experiment.
+    pub experiment: Experiment,
+    /// Places scored (all places, or the placeholders).
+    pub scored: usize,
+    /// Accuracy of the evidence's argmax alone (ties split evenly).
+    pub evidence_only: f64,
+    /// Accuracy per model, by model name (ties split evenly).
+    pub accuracy: Scores<f64>,
+    /// Whether loopy BP converged, by MRF name ([`MRF_MODELS`](super::models::MRF_MODELS)).
+    pub bp_converged: BTreeMap<String, bool>,
+}
+
+/// Per-building facts.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct BuildingInfo {
+    /// Test building.
+    pub building: String,
+    /// Training buildings.
+    pub trained_on: Vec<String>,
+    /// Test maps chosen (names, sorted).
+    pub test_maps: Vec<String>,
+    /// Seconds spent training GraphSPN.
+    pub train_seconds: f64,
+    /// Seconds spent training the tree mixture (noise-aware fit included).
+    #[serde(default)]
+    pub train_seconds_trees: f64,
+    /// The settings used (chosen by validation on the training buildings).
+    pub settings: ModelSettings,
+}
+
+/// Everything a run measured (written as results.json).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Reproduction {
+    /// Master seed.
+    pub seed: u64,
+    /// Whether the paper's effective noise (wrong class drawn among all classes) was used.
+    pub paper_noise: bool,
+    /// The validation behind every building's settings (empty when settings were given).
+    pub validation: Vec<Validation>,
+    /// Per building.
+    pub buildings: Vec<BuildingInfo>,
+    /// Per test graph.
+    pub graphs: Vec<GraphResult>,
+    /// Novelty experiment.
+    pub novelty: Vec<NoveltyResult>,
+    /// Per novelty set: the area under the ROC curve per model
+    /// ([`MODELS`](super::models::MODELS) order), pooled over maps and buildings (empty
+    /// when novelty was not run).
+    pub auc: Vec<(NoveltySet, Scores<f64>)>,
+    /// Per novelty set, the within-map ranking: per model, the share of (novel,
+    /// non-novel) labelling pairs of the same map that the model ranks correctly
+    /// (ties ½), averaged over maps.
+    pub within_map: Vec<(NoveltySet, Scores<f64>)>,
+    /// Per test building: how well an oracle knowing every explored place's true class
+    /// labels the placeholders from their neighbourhood ([`super::ceiling`]).
+    #[serde(default)]
+    pub ceiling: Vec<CeilingRow>,
+    /// Table 1 statistics of the evidence simulated on the test maps:
+    /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
+    pub table1: Vec<(u8, f64, f64, f64, f64)>,
+    /// Wall-clock seconds of the whole run (filled by the caller).
+    pub seconds: f64,
+    /// For an evaluation of a user's map sets (`graphspn evaluate`, filled by the
+    /// caller): which set is which. `None` for a reproduction on the COLD buildings;
+    /// the report then compares with the paper.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub evaluation: Option<super::sets::Evaluation>,
+}
