@@ -6,7 +6,7 @@ use quote::quote;
 
 use super::super::emit::{int, rt};
 use super::super::surface::{checked, checked_labelled};
-use super::{Context, Tpl};
+use super::{Context, Tpl, state};
 
 /// One driver call per template, `call(table)` with the template's `static` table.
 fn per_template(tpls: &[Tpl], call: impl Fn(&Tpl) -> TokenStream) -> TokenStream {
@@ -141,8 +141,6 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool) -> TokenStream {
 fn one_pass_marginals(tpls: &[Tpl], cx: &Context, checked: TokenStream) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let mut eval = TokenStream::new();
-    let mut values = TokenStream::new();
-    let mut scatter = TokenStream::new();
     for tp in tpls {
         let (stat, groups) = (&tp.stat, int(tp.groups()));
         let (first_component, first_row) = (int(tp.first_component), int(tp.first_row));
@@ -153,13 +151,9 @@ fn one_pass_marginals(tpls: &[Tpl], cx: &Context, checked: TokenStream) -> Token
                 }
             }
         });
-        values.extend(quote! {
-            if let Some(v) = val.get(#first_component..) { #rt::state_values(&#stat, v, &mut acc); }
-        });
-        scatter.extend(quote! {
-            if let Some(p) = post.get(#first_row..) { #rt::state_marginals(&#stat, p, &w, out); }
-        });
     }
+    let values = state::cached_values(tpls, &quote!(val));
+    let scatter = state::cached_marginals(tpls, &quote!(post), &quote!(w));
     quote! {
         /// Like [`marginals`], without validating the evidence.
         pub fn marginals_unchecked(e: &Evidence, out: &mut Marginals) -> Result<#t, ::graphspn_runtime::EvidenceError> {

@@ -95,13 +95,38 @@ fn state_type(cx: &Context) -> TokenStream {
     }
 }
 
+/// Per template: the component values held in `val` (the cache's layout) multiplied
+/// into the decomposition accumulators `acc` (shared by the `State` and the one-pass
+/// stateless `marginals`).
+pub(super) fn cached_values(tpls: &[Tpl], val: &TokenStream) -> TokenStream {
+    let rt = rt();
+    tpls.iter()
+        .map(|tp| {
+            let (stat, first_component) = (&tp.stat, int(tp.first_component));
+            quote!(if let Some(v) = #val.get(#first_component..) { #rt::state_values(&#stat, v, &mut acc); })
+        })
+        .collect()
+}
+
+/// Per template: the local posteriors held in `post` (the cache's layout), weighted by
+/// the decomposition weights `w`, added into `out`.
+pub(super) fn cached_marginals(tpls: &[Tpl], post: &TokenStream, w: &TokenStream) -> TokenStream {
+    let rt = rt();
+    tpls.iter()
+        .map(|tp| {
+            let (stat, first_row) = (&tp.stat, int(tp.first_row));
+            quote!(if let Some(p) = #post.get(#first_row..) { #rt::state_marginals(&#stat, p, &#w, out); })
+        })
+        .collect()
+}
+
 /// The cache's private methods: evaluating one lane group of a template, one unit
 /// (global group), re-mixing the decompositions, refreshing everything, storing a row.
 fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let mut eval_fns = TokenStream::new();
     let mut dispatch = TokenStream::new();
-    let mut values = TokenStream::new();
+    let values = cached_values(tpls, &quote!(self.val));
     let mut refresh = TokenStream::new();
     for (ti, tp) in tpls.iter().enumerate() {
         let (f, stat) = (tp.eval_group(ti), &tp.stat);
@@ -115,9 +140,6 @@ fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
             #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, g, v, p); } }
         });
         dispatch.extend(quote!(if unit < #end { self.#f(unit - #first_group); } else));
-        values.extend(quote! {
-            if let Some(v) = self.val.get(#first_component..) { #rt::state_values(&#stat, v, &mut acc); }
-        });
         refresh.extend(quote!(for g in 0..#groups { self.#f(g); }));
     }
     quote! {
@@ -243,13 +265,7 @@ fn update_methods(cx: &Context) -> TokenStream {
 fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let err = quote!(::graphspn_runtime::EvidenceError);
-    let marginal_calls: TokenStream = tpls
-        .iter()
-        .map(|tp| {
-            let (stat, first_row) = (&tp.stat, int(tp.first_row));
-            quote!(if let Some(p) = self.post.get(#first_row..) { #rt::state_marginals(&#stat, p, &self.w, out); })
-        })
-        .collect();
+    let marginal_calls = cached_marginals(tpls, &quote!(self.post), &quote!(self.w));
     quote! {
         /// Natural log of the likelihood of the current evidence (from the cache): of the
         /// product of every observation where rows were fused by `observe`.
