@@ -125,18 +125,20 @@ fn cold_maps_match_interpreter() {
             },
         )
         .unwrap();
-        // The first compiled map is checked in all four forms (f32 / f64, scalar as on
-        // microcontrollers / SIMD lane groups as on the host), the others alternately
-        // in f32 scalar and f32 SIMD, against the same interpreter results.
+        // The first compiled map is checked in all five forms (f32 / f64, scalar as on
+        // microcontrollers / SIMD lane groups as on the host, the fixed-point kernel of
+        // targets without an FPU), the others alternately in f32 scalar with both
+        // kernels and f32 SIMD, against the same interpreter results.
         let variants = if cases.is_empty() {
             vec![
                 Variant::F32,
                 Variant::F64,
                 Variant::F32_SCALAR,
                 Variant::F64_SCALAR,
+                Variant::FIXED,
             ]
         } else if cases.len() % 2 == 1 {
-            vec![Variant::F32_SCALAR]
+            vec![Variant::F32_SCALAR, Variant::FIXED]
         } else {
             vec![Variant::F32]
         };

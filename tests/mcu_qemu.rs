@@ -42,7 +42,7 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use graphspn::codegen::{AnyInputs, Builder};
+use graphspn::codegen::{AnyInputs, Arithmetic, Builder};
 use graphspn::instance::Instance;
 use graphspn::interpreter::{Evaluator, Evidence};
 use graphspn::treemix::TreeInstance;
@@ -601,8 +601,15 @@ fn check_tree_map(target: &str, m: &MapReport, index: u64) {
     );
 }
 
+/// Whether `Builder` gives `target` the fixed-point kernel (no FPU).
+fn is_fixed(target: &str) -> bool {
+    Arithmetic::for_target(target) == Arithmetic::Fixed
+}
+
 /// Checks one map of an MCU report against the interpreter (tolerances) and returns
-/// how many of its numbers differ in bits from `host` (the x86-64-v3 build).
+/// how many of its numbers differ in bits from `host` (the x86-64-v3 build). On a
+/// fixed-point target it also prints the largest errors and checks them against the
+/// kernel's documented bound (`fixed_bounds`).
 fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usize {
     if m.name.ends_with("_trees") {
         check_tree_map(target, m, index);
@@ -641,6 +648,26 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     );
     // Interpreter.
     let want = ev.marginals(&free, &evidence).unwrap();
+    if is_fixed(target) {
+        let (ll_bound, marginal_bound) = fixed_bounds(&inst);
+        let ll_err = (value(1) - want.log_likelihood).abs();
+        let marginal_err = m
+            .marginals
+            .iter()
+            .flatten()
+            .zip(want.probs.iter().flatten())
+            .map(|(&got, &w)| (f64::from(f32::from_bits(got)) - w).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "{target} {}: fixed-point kernel, largest errors against the interpreter: log-likelihood {ll_err:.2e} (bound {ll_bound:.2e}), marginals {marginal_err:.2e} (bound {marginal_bound:.2e})",
+            m.name
+        );
+        assert!(
+            ll_err <= ll_bound && marginal_err <= marginal_bound,
+            "{}",
+            ctx("fixed-point error bound")
+        );
+    }
     for i in [0, 1] {
         assert!(
             close(value(i), want.log_likelihood),
@@ -688,6 +715,23 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     );
     // The x86-64-v3 host build: same tolerances, and count differing bits.
     compare_with_host(target, m, host)
+}
+
+/// The fixed-point kernel's documented error bound for an instance (see the
+/// generator's `codegen::fixed` module): each template value off by at most `2^-14` of
+/// itself and each local posterior by `2^-10`, so with `K` components in the largest
+/// decomposition the log-likelihood is off by at most `K·2^-14` (plus `f32` rounding
+/// of the sum, 1e-3 here) and a marginal by `2^-10 + 2K·2^-14` (the decomposition
+/// weights' relative error).
+fn fixed_bounds(inst: &Instance) -> (f64, f64) {
+    let k = inst
+        .decompositions
+        .iter()
+        .map(|d| d.components.len())
+        .max()
+        .unwrap_or(0) as f64;
+    let unit = 2f64.powi(-14);
+    (k * unit + 1e-3, 16.0 * unit + 2.0 * k * unit)
 }
 
 /// How many of a map's numbers differ in bits from the x86-64-v3 host build `host`
@@ -996,8 +1040,10 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         drop(qemu(mcu.qemu));
     }
     build_firmware(&MCUS.map(|m| m.target), "release", None);
-    // The host build of the same scalar code (Rust never fuses a multiply and an
-    // add, so the workspace's x86-64-v3 flags change no result bit).
+    // The host build of the same scalar float code (Rust never fuses a multiply and
+    // an add, so the workspace's x86-64-v3 flags change no result bit); targets
+    // without an FPU get the fixed-point kernel (`Builder`'s default for them) and are
+    // compared with each other instead.
     build_firmware(&[HOST], "release", None);
     let built = start.elapsed();
     let baseline = parse(&run_bounded(
@@ -1042,6 +1088,7 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         "saarbrucken_seq2_night1_trees",
     ]
     .map(stack_bounds);
+    let fixed_reference = reports.iter().find(|(t, _)| is_fixed(t));
     for (target, r) in &reports {
         let (loop_n, measured, _) = r.calibration;
         assert!(
@@ -1049,11 +1096,18 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
             "{target}: the counter gives {measured} instructions for a loop of {loop_n}"
         );
         assert_eq!(r.maps.len(), 4, "{target}: maps");
-        assert_eq!(
-            results(r),
-            results(&baseline),
-            "{target}: results differ from the host's x86-64 baseline build"
-        );
+        match fixed_reference {
+            Some((first, reference)) if is_fixed(target) => assert_eq!(
+                results(r),
+                results(reference),
+                "{target}: results differ from {first}'s (both use the fixed-point kernel)"
+            ),
+            _ => assert_eq!(
+                results(r),
+                results(&baseline),
+                "{target}: results differ from the host's x86-64 baseline build"
+            ),
+        }
         let mut peak = 0;
         for (i, (m, host)) in r.maps.iter().zip(&hosts).enumerate() {
             let differ = check_map(target, m, i as u64, host);

@@ -9,7 +9,7 @@
 mod common;
 
 use common::{Case, Variant, differential, env_usize};
-use graphspn::codegen::{Precision, Vectorisation};
+use graphspn::codegen::{Arithmetic, Precision, Vectorisation};
 use graphspn::decompose::synthetic::random_connected_map;
 use graphspn::decompose::{DecompositionParams, decompose_best};
 use graphspn::learn::{DenseParams, Model, dense_structure, uniform_spn};
@@ -174,18 +174,33 @@ fn random_case(seed: u64, vectors: usize) -> Case {
         model,
         map,
         decs,
-        // Every third structure is compiled to f64, every other one to scalar code.
-        variants: vec![Variant {
-            precision: if seed.is_multiple_of(3) {
-                Precision::F64
-            } else {
-                Precision::F32
-            },
-            vectorisation: if seed % 2 == 1 {
-                Vectorisation::Scalar
-            } else {
-                Vectorisation::Simd
-            },
+        // Every third structure is compiled to f64, every other one to scalar code,
+        // and every other f32 scalar one with the fixed-point kernel.
+        variants: vec![{
+            let (precision, vectorisation) = (
+                if seed.is_multiple_of(3) {
+                    Precision::F64
+                } else {
+                    Precision::F32
+                },
+                if seed % 2 == 1 {
+                    Vectorisation::Scalar
+                } else {
+                    Vectorisation::Simd
+                },
+            );
+            let fixed = precision == Precision::F32
+                && vectorisation == Vectorisation::Scalar
+                && (seed / 2).is_multiple_of(2);
+            Variant {
+                precision,
+                vectorisation,
+                arithmetic: if fixed {
+                    Arithmetic::Fixed
+                } else {
+                    Arithmetic::Float
+                },
+            }
         }],
         vectors,
         seed,

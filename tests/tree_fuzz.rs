@@ -16,7 +16,7 @@ mod common;
 
 use common::trees::{TreeCase, tree_differential};
 use common::{Variant, env_usize};
-use graphspn::codegen::{Precision, Vectorisation};
+use graphspn::codegen::{Arithmetic, Precision, Vectorisation};
 use graphspn::family::ModelFamily;
 use graphspn::map::{ClassSet, Place, TopoMap};
 use graphspn::spn::Mixing;
@@ -158,6 +158,8 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
         } else {
             Vectorisation::Scalar
         },
+        // Tree mixtures compute in floats whatever the arithmetic asked for.
+        arithmetic: Arithmetic::Float,
     };
     match (variant.precision, variant.vectorisation) {
         (Precision::F32, Vectorisation::Scalar) => paths.f32_scalar += 1,

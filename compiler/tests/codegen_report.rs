@@ -115,3 +115,67 @@ fn simd_marginals_take_one_pass_when_the_scratch_fits() {
         "{two:?} {one:?}"
     );
 }
+
+/// `Builder` picks the fixed-point kernel exactly for targets without an FPU.
+#[test]
+fn fixed_point_is_chosen_for_targets_without_an_fpu() {
+    use graphspn_compiler::codegen::Arithmetic;
+    use graphspn_compiler::codegen::Arithmetic::{Fixed, Float};
+    for (target, want) in [
+        ("thumbv7em-none-eabihf", Float),
+        ("thumbv8m.main-none-eabihf", Float),
+        ("thumbv7em-none-eabi", Fixed),
+        ("thumbv7m-none-eabi", Fixed),
+        ("thumbv6m-none-eabi", Fixed),
+        ("riscv32imac-unknown-none-elf", Fixed),
+        ("riscv32imc-unknown-none-elf", Fixed),
+        ("riscv32imafc-unknown-none-elf", Float),
+        ("riscv64gc-unknown-none-elf", Float),
+        ("x86_64-unknown-linux-gnu", Float),
+        ("aarch64-unknown-linux-gnu", Float),
+    ] {
+        assert_eq!(Arithmetic::for_target(target), want, "{target}");
+    }
+}
+
+/// The fixed-point kernel: the driver's value and posterior functions of every block
+/// template go through the runtime's threshold check (`fx_fwd` / `fx_post`) into a
+/// Q0.32 twin, keeping the `f32` functions for small values; MPE stays `f32`. Needs
+/// `f32` scalar code: anything else is refused with a message.
+#[test]
+fn fixed_point_wraps_block_templates_and_refuses_other_forms() {
+    use graphspn_compiler::codegen::{Arithmetic, Precision};
+    let b = builder("saarbrucken_seq2_night1.json", Vectorisation::Scalar)
+        .arithmetic(Arithmetic::Fixed);
+    let (src, report) = generate(&b);
+    for t in ["t0_star", "t1_three", "t2_pair"] {
+        for f in ["fx_fwd", "fx_post", "fl_fwd", "fl_post", "mpe", "max"] {
+            assert!(src.contains(&format!("fn {t}_{f}(")), "{t}_{f}");
+        }
+        assert!(src.contains(&format!("{t}_fx_fwd, {t}_fl_fwd)")), "{t}");
+    }
+    // Q0.32 constants, no float literal in a fixed-point function.
+    let start = src.find("fn t0_star_fx_fwd(").unwrap();
+    let body = &src[start..start + src[start..].find("\n}\n").unwrap()];
+    assert!(
+        body.contains("Fx(0x") && !body.contains("f32"),
+        "{}",
+        &body[..400]
+    );
+    let float = demo("saarbrucken_seq2_night1.json", Vectorisation::Scalar);
+    assert_eq!(report.macs_log_likelihood, float.macs_log_likelihood);
+    assert!(report.stack_marginals > float.stack_marginals);
+    for (p, v) in [
+        (Precision::F64, Vectorisation::Scalar),
+        (Precision::F32, Vectorisation::Simd),
+    ] {
+        let b = builder("floor.json", v)
+            .precision(p)
+            .arithmetic(Arithmetic::Fixed);
+        let err = b.report_from(&b.load().unwrap()).unwrap_err().to_string();
+        assert!(
+            err.contains("fixed-point arithmetic needs f32 scalar code"),
+            "{err}"
+        );
+    }
+}

@@ -23,7 +23,9 @@ fn main() {
         // Scalar code (one component per call) on every target, the host build
         // included: the MCUs get it anyway (`Builder` picks it for targets without
         // float SIMD), and the host build the tests compare with then runs exactly the
-        // same operations (Rust never fuses a multiply and an add on its own).
+        // same operations (Rust never fuses a multiply and an add on its own). Targets
+        // without an FPU (Cortex-M3, RV32IMAC) get `Builder`'s default for them, the
+        // fixed-point kernel.
         if let Err(e) = Builder::new(demo.join("model.json"), demo.join(file))
             .vectorisation(Vectorisation::Scalar)
             .seed(0)

@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::codegen::{
-    AnyInputs, Builder, CodeReport, Precision, Vectorisation, check_module_name, is_generated_file,
+    AnyInputs, Arithmetic, Builder, CodeReport, Precision, Vectorisation, check_module_name,
+    is_generated_file,
 };
 use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
@@ -71,6 +72,10 @@ pub struct CompileArgs {
     /// per call instead of SIMD lane groups.
     #[arg(long)]
     scalar: bool,
+    /// Fixed-point (Q0.32 integer) template kernels for a target without an FPU
+    /// (RV32IMAC, Cortex-M0+/M3): implies --scalar; GraphSPN, f32 only.
+    #[arg(long, conflicts_with = "f64")]
+    fixed_point: bool,
     /// Name of the module the file is meant for (a Rust identifier; shown in the
     /// `include!` line printed at the end).
     #[arg(long, default_value = "map")]
@@ -169,7 +174,12 @@ pub fn run(args: CompileArgs) -> Result<()> {
         .out_file(&args.out)
         .overwrite(args.force)
         .cargo_metadata(false)
-        .vectorisation(if args.scalar {
+        .arithmetic(if args.fixed_point {
+            Arithmetic::Fixed
+        } else {
+            Arithmetic::Float
+        })
+        .vectorisation(if args.scalar || args.fixed_point {
             Vectorisation::Scalar
         } else {
             Vectorisation::Simd

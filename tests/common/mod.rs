@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use graphspn::codegen::{CodegenOptions, Precision, Vectorisation, generate};
+use graphspn::codegen::{Arithmetic, CodegenOptions, Precision, Vectorisation, generate};
 use graphspn::decompose::Decomposition;
 use graphspn::instance::Instance;
 use graphspn::interpreter::{BATCH, Evaluator, Evidence, InferenceError};
@@ -27,6 +27,8 @@ pub struct Variant {
     pub precision: Precision,
     /// Scalar code (as on microcontrollers) or SIMD lane groups.
     pub vectorisation: Vectorisation,
+    /// Float or fixed-point template kernels.
+    pub arithmetic: Arithmetic,
 }
 
 impl Variant {
@@ -34,25 +36,39 @@ impl Variant {
     pub const F32: Variant = Variant {
         precision: Precision::F32,
         vectorisation: Vectorisation::Simd,
+        arithmetic: Arithmetic::Float,
     };
     /// `f64` code in SIMD lane groups.
     pub const F64: Variant = Variant {
         precision: Precision::F64,
         vectorisation: Vectorisation::Simd,
+        arithmetic: Arithmetic::Float,
     };
     /// `f32` scalar code (the microcontroller form).
     pub const F32_SCALAR: Variant = Variant {
         precision: Precision::F32,
         vectorisation: Vectorisation::Scalar,
+        arithmetic: Arithmetic::Float,
     };
     /// `f64` scalar code.
     pub const F64_SCALAR: Variant = Variant {
         precision: Precision::F64,
         vectorisation: Vectorisation::Scalar,
+        arithmetic: Arithmetic::Float,
     };
 
-    /// Module name suffix, e.g. `f32`, `f64_scalar`.
+    /// `f32` scalar code with the fixed-point kernel (targets without an FPU).
+    pub const FIXED: Variant = Variant {
+        precision: Precision::F32,
+        vectorisation: Vectorisation::Scalar,
+        arithmetic: Arithmetic::Fixed,
+    };
+
+    /// Module name suffix, e.g. `f32`, `f64_scalar`, `fixed`.
     fn suffix(&self) -> String {
+        if self.arithmetic == Arithmetic::Fixed {
+            return "fixed".into();
+        }
         let p = match self.precision {
             Precision::F32 => "f32",
             Precision::F64 => "f64",
@@ -461,6 +477,7 @@ pub fn differential(crate_name: &str, cases: &[Case]) -> Vec<(String, String)> {
                     let opts = CodegenOptions {
                         precision: variant.precision,
                         vectorisation: variant.vectorisation,
+                        arithmetic: variant.arithmetic,
                         ..Default::default()
                     };
                     let name = case.module(variant);

@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 use super::{
-    CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation, generate_trees_with_report,
-    generate_with_report,
+    Arithmetic, CodeReport, CodegenError, CodegenOptions, Precision, Vectorisation,
+    generate_trees_with_report, generate_with_report,
 };
 use crate::decompose::file::DecompositionFileError;
 use crate::decompose::{
@@ -333,6 +333,7 @@ pub struct Builder {
     out_dir: Option<PathBuf>,
     out_file: Option<PathBuf>,
     vectorisation: Option<Vectorisation>,
+    arithmetic: Option<Arithmetic>,
     max_stack_bytes: Option<usize>,
     cargo_lines: bool,
     overwrite: bool,
@@ -354,6 +355,7 @@ impl Builder {
             out_dir: None,
             out_file: None,
             vectorisation: None,
+            arithmetic: None,
             max_stack_bytes: None,
             cargo_lines: true,
             overwrite: false,
@@ -451,6 +453,16 @@ impl Builder {
         self
     }
 
+    /// Float or fixed-point template arithmetic. Default: chosen for the crate's
+    /// compilation target from `TARGET` (set by cargo for build scripts, see
+    /// [`Arithmetic::for_target`]) when the code is scalar `f32`: fixed point on
+    /// targets without an FPU (RV32IMAC, Cortex-M0+/M3); floats otherwise and outside
+    /// a build script.
+    pub fn arithmetic(mut self, a: Arithmetic) -> Self {
+        self.arithmetic = Some(a);
+        self
+    }
+
     /// Stack budget (bytes; default 16 KiB for scalar code, 64 KiB for SIMD code, see
     /// [`CodegenOptions::max_stack_bytes`]): generation fails when a generated entry
     /// point could need more.
@@ -538,12 +550,20 @@ impl Builder {
     }
 
     fn options(&self) -> CodegenOptions {
+        let vectorisation = self.vectorisation.unwrap_or_else(|| {
+            std::env::var("CARGO_CFG_TARGET_ARCH")
+                .map_or(Vectorisation::Simd, |a| Vectorisation::for_arch(&a))
+        });
+        let arithmetic = self.arithmetic.unwrap_or_else(|| {
+            match (vectorisation, self.precision, std::env::var("TARGET")) {
+                (Vectorisation::Scalar, Precision::F32, Ok(t)) => Arithmetic::for_target(&t),
+                _ => Arithmetic::Float,
+            }
+        });
         CodegenOptions {
             precision: self.precision,
-            vectorisation: self.vectorisation.unwrap_or_else(|| {
-                std::env::var("CARGO_CFG_TARGET_ARCH")
-                    .map_or(Vectorisation::Simd, |a| Vectorisation::for_arch(&a))
-            }),
+            vectorisation,
+            arithmetic,
             max_stack_bytes: self.max_stack_bytes,
             model_label: self
                 .model

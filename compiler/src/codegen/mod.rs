@@ -35,6 +35,7 @@
 pub mod analysis;
 mod builder;
 mod emit;
+mod fixed;
 mod kernels;
 mod sparse;
 mod surface;
@@ -90,6 +91,47 @@ impl Vectorisation {
     }
 }
 
+/// How templates compute: hardware floats, or integers on targets without an FPU.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Arithmetic {
+    /// Floating point in the module's [`Precision`] everywhere.
+    #[default]
+    Float,
+    /// Q0.32 fixed-point value and posterior functions for block templates (integer
+    /// multiplies and adds: no soft-float calls), each result kept only when its error
+    /// bound is at most `2^-14` of it, else recomputed in `f32` (see the generator's
+    /// `fixed` module). The rest of the module (evidence scaling, decomposition mixing,
+    /// MPE) stays `f32`. Needs [`Precision::F32`] and [`Vectorisation::Scalar`];
+    /// GraphSPN modules only (a tree mixture always computes in floats).
+    Fixed,
+}
+
+impl Arithmetic {
+    /// The choice for a compilation target triple (Cargo's `TARGET`): fixed point on
+    /// targets without a floating-point unit — 32-bit Arm without the hard-float ABI
+    /// (`thumbv6m-none-eabi`, `thumbv7m-none-eabi`, `thumbv8m.base-none-eabi`, ...) and
+    /// RISC-V without the F extension (`riscv32imac-unknown-none-elf`,
+    /// `riscv32imc-...`) — and floats everywhere else.
+    pub fn for_target(triple: &str) -> Arithmetic {
+        let arch = triple.split('-').next().unwrap_or("");
+        let no_fpu = if let Some(isa) = arch
+            .strip_prefix("riscv32")
+            .or_else(|| arch.strip_prefix("riscv64"))
+        {
+            !isa.contains(['f', 'g'])
+        } else if arch.starts_with("thumb") || arch.starts_with("arm") {
+            !triple.ends_with("eabihf")
+        } else {
+            false
+        };
+        if no_fpu {
+            Arithmetic::Fixed
+        } else {
+            Arithmetic::Float
+        }
+    }
+}
+
 /// Options of [`generate`].
 #[derive(Clone, Debug)]
 pub struct CodegenOptions {
@@ -97,6 +139,8 @@ pub struct CodegenOptions {
     pub precision: Precision,
     /// Scalar code or SIMD lane groups.
     pub vectorisation: Vectorisation,
+    /// Float or fixed-point template arithmetic.
+    pub arithmetic: Arithmetic,
     /// Name of the model written into the `@generated` header (e.g. its file name).
     pub model_label: String,
     /// Stack budget (bytes): generation fails when the computed worst-case stack of
@@ -127,6 +171,7 @@ impl Default for CodegenOptions {
         CodegenOptions {
             precision: Precision::F32,
             vectorisation: Vectorisation::Simd,
+            arithmetic: Arithmetic::Float,
             model_label: "model".into(),
             max_stack_bytes: None,
         }

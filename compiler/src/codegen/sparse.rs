@@ -31,9 +31,10 @@
 //! float SIMD, one component per call; 8 or 4 SIMD lanes on the host). MPE
 //! backtracking is always scalar, one component at a time.
 
+use std::cell::Cell;
 use std::collections::BTreeSet;
 
-use proc_macro2::{Ident, TokenStream};
+use proc_macro2::{Ident, Literal, TokenStream};
 use quote::{ToTokens, format_ident, quote};
 
 use super::emit::{Lit, int, join, rt};
@@ -119,6 +120,12 @@ pub struct SparseCode<'a> {
     pub prefix: String,
     /// The block structure.
     pub plan: &'a Plan,
+    /// Q0.32 fixed-point code (`fwd` and `post` only, see [`super::fixed`]) instead of
+    /// the module's float lane type.
+    pub fixed: bool,
+    /// Fixed-point code: error units (of `2^-32`) of the shifted floor-form operations
+    /// emitted since the last [`SparseCode::take_shift_units`].
+    pub shift_units: Cell<usize>,
 }
 
 /// Multiply(-add) counts of one template's functions, per call (one call evaluates
@@ -135,9 +142,73 @@ pub struct Counts {
     pub mpe: usize,
 }
 
-impl SparseCode<'_> {
+impl<'a> SparseCode<'a> {
+    /// The float code of `plan` under `prefix`.
+    pub fn float(prefix: String, plan: &'a Plan) -> Self {
+        SparseCode {
+            prefix,
+            plan,
+            fixed: false,
+            shift_units: Cell::new(0),
+        }
+    }
+
+    /// The fixed-point code of `plan` under `prefix` (`fwd` and `post`).
+    pub fn fixed(prefix: String, plan: &'a Plan) -> Self {
+        SparseCode {
+            fixed: true,
+            ..Self::float(prefix, plan)
+        }
+    }
+
+    /// The error units of shifted operations emitted since the last call.
+    pub fn take_shift_units(&self) -> usize {
+        self.shift_units.replace(0)
+    }
+
     fn ident(&self, suffix: &str) -> Ident {
         format_ident!("{}_{}", self.prefix, suffix)
+    }
+
+    /// A weight: a float literal, or in fixed-point code a Q0.32 constant.
+    fn weight(&self, l: &Lit, w: f64) -> TokenStream {
+        if self.fixed {
+            super::fixed::constant(w)
+        } else {
+            l.num(w)
+        }
+    }
+
+    /// `1` as a lane value.
+    fn one(&self) -> TokenStream {
+        if self.fixed {
+            quote!(V::ONE)
+        } else {
+            quote!(V::splat(1.0))
+        }
+    }
+
+    /// Length of input vector `g` (a variable's classes or a block's sums).
+    fn len_of(&self, g: usize) -> usize {
+        match g.checked_sub(self.plan.n) {
+            None => self.plan.classes,
+            Some(b) => self.plan.blocks[b].sums.len(),
+        }
+    }
+
+    /// Fixed-point code: the integer bits `sv{g}` is kept with.
+    fn sum_bits(&self, g: usize) -> u32 {
+        super::fixed::sum_bits(self.len_of(g))
+    }
+
+    /// Fixed-point code: `expr · 2^s` when `s > 0` (also counts its error units).
+    fn shifted(&self, expr: TokenStream, s: u32) -> TokenStream {
+        if s == 0 {
+            return expr;
+        }
+        self.shift_units.set(self.shift_units.get() + (2usize << s));
+        let s = Literal::u32_unsuffixed(s);
+        quote!((#expr).times_pow2(#s))
     }
 
     /// Vector `g` of a sweep: a variable's `vars[g]` or block `{blocks}{g − n}`
@@ -193,7 +264,16 @@ impl SparseCode<'_> {
                 quote!(let #name = V::max_of(&#v);)
             } else {
                 let name = format_ident!("sv{g}");
-                quote!(let #name = V::sum(&#v);)
+                if self.fixed {
+                    let k = self.sum_bits(g);
+                    // Σ_i (x_i >> k): each truncation below 2^(k-32), times its
+                    // sensitivity (≤ 1/len): under 2^k units in all.
+                    self.shift_units.set(self.shift_units.get() + (1usize << k));
+                    let k = Literal::u32_unsuffixed(k);
+                    quote!(let #name = V::sum_shr(&#v, #k);)
+                } else {
+                    quote!(let #name = V::sum(&#v);)
+                }
             });
         }
     }
@@ -233,8 +313,15 @@ impl SparseCode<'_> {
                     let row = &seg_rows[s][m];
                     if row.floor > 0.0 {
                         let fp = format_ident!("fp{b}_{s}");
-                        let floor = l.num(row.floor);
-                        let f = quote!(#fp * V::splat(#floor));
+                        let f = if self.fixed && !max {
+                            // `fp` holds Σk integer bits: scale the floor to match.
+                            let bits = seg.inputs.iter().map(|&g| self.sum_bits(g)).sum();
+                            let (c, s) = super::fixed::scaled_constant(row.floor, bits);
+                            self.shifted(quote!(#fp * V::splat(#c)), s)
+                        } else {
+                            let floor = l.num(row.floor);
+                            quote!(#fp * V::splat(#floor))
+                        };
                         ops += 1;
                         body.extend(if max {
                             quote!(#acc = Lanes::max(#acc, #f);)
@@ -274,7 +361,7 @@ impl SparseCode<'_> {
         let mut ops = 0;
         let Groups { pos, groups } = group_terms(seg, row);
         // The weight of a term: above the floor for a sum, whole for a max.
-        let weight = |d: f64, w: f64| l.num(if max { w } else { d });
+        let weight = |d: f64, w: f64| self.weight(l, if max { w } else { d });
         for (gi, (i, terms)) in groups.iter().enumerate() {
             if let [(t, d, w)] = terms[..] {
                 let (Some(p), _) = self.product(seg, t, &[]) else {
@@ -294,10 +381,7 @@ impl SparseCode<'_> {
                 let w = weight(d, w);
                 // The rest of a tuple of one input is the empty product (groups of two
                 // or more terms only arise with two or more inputs).
-                let rest = self
-                    .product(seg, t, &[pos])
-                    .0
-                    .unwrap_or_else(|| quote!(V::splat(1.0)));
+                let rest = self.product(seg, t, &[pos]).0.unwrap_or_else(|| self.one());
                 ops += seg.inputs.len() - 1;
                 body.extend(match (k, max) {
                     (0, _) => quote!(let #q = (#rest) * V::splat(#w);),
@@ -322,11 +406,31 @@ impl SparseCode<'_> {
         quote!(#b[#m])
     }
 
-    /// `x: &[[V; C]; N]`.
+    /// `x: &[[V; C]; N]` (`Fx` in fixed-point code).
     fn arg_x(&self) -> TokenStream {
-        let c = int(self.plan.classes);
-        let n = int(self.plan.n);
-        quote!(x: &[[V; #c]; #n])
+        let (c, n, v) = (int(self.plan.classes), int(self.plan.n), self.lane_type());
+        quote!(x: &[[#v; #c]; #n])
+    }
+
+    /// The lane type in signatures: the module's `V`, or `Fx` in fixed-point code.
+    fn lane_type(&self) -> TokenStream {
+        if self.fixed {
+            let rt = rt();
+            quote!(#rt::Fx)
+        } else {
+            quote!(V)
+        }
+    }
+
+    /// Fixed-point code: the items that make `V` and `Lanes` in the body mean `Fx`
+    /// and its operations.
+    fn body_prelude(&self) -> TokenStream {
+        if self.fixed {
+            let rt = rt();
+            quote!(#[allow(unused_imports)] use #rt::{Fx, Fx as V, FxLanes as Lanes};)
+        } else {
+            TokenStream::new()
+        }
     }
 
     /// `fn <prefix>_fwd(x) -> V`: the value of every lane's component; and its
@@ -343,12 +447,12 @@ impl SparseCode<'_> {
 
     /// `_fwd` or `_max`: the forward sweep and the root.
     fn value_fn(&self, l: &Lit, max: bool) -> (TokenStream, usize) {
-        let mut body = TokenStream::new();
+        let mut body = self.body_prelude();
         let ops = self.forward(l, max, &mut body);
         let name = self.ident(if max { "max" } else { "fwd" });
-        let (x, root) = (self.arg_x(), self.root());
+        let (x, root, v) = (self.arg_x(), self.root(), self.lane_type());
         (
-            quote!(#[inline(never)] fn #name(#x) -> V { #body #root }),
+            quote!(#[inline(never)] fn #name(#x) -> #v { #body #root }),
             ops,
         )
     }
@@ -396,7 +500,7 @@ impl SparseCode<'_> {
         let hd = format_ident!("hd");
         for (gi, (i, terms)) in groups.iter().enumerate() {
             if let [(t, d, _)] = terms[..] {
-                let d = l.num(d);
+                let d = self.weight(l, d);
                 body.extend(quote!(let #h = #gm * V::splat(#d);));
                 spread(t, &h, None, body);
                 continue;
@@ -408,7 +512,7 @@ impl SparseCode<'_> {
                 let #h = #gm * #a;
             ));
             for &(t, d, _) in terms {
-                let d = l.num(d);
+                let d = self.weight(l, d);
                 if let [_, _] = seg.inputs[..] {
                     // Two inputs: the other factor's adjoint gets `h·d` in one step.
                     let other = 1 - pos;
@@ -439,7 +543,7 @@ impl SparseCode<'_> {
     pub fn post(&self, l: &Lit) -> (TokenStream, usize) {
         let p = self.plan;
         let rt = rt();
-        let mut body = TokenStream::new();
+        let mut body = self.body_prelude();
         let mut ops = self.forward(l, false, &mut body);
         // The forward sweep defined `sv{g}` for the inputs of segments with a floor.
         let (c, n) = (int(p.classes), int(p.n));
@@ -450,7 +554,8 @@ impl SparseCode<'_> {
             body.extend(quote!(let mut #g = [V::ZERO; #len];));
         }
         let (g_root, m_root) = (format_ident!("g{}", p.root.0), int(p.root.1));
-        body.extend(quote!(#g_root[#m_root] = V::splat(1.0);));
+        let one = self.one();
+        body.extend(quote!(#g_root[#m_root] = #one;));
         for (b, block) in p.blocks.iter().enumerate().rev() {
             let gb = format_ident!("g{b}");
             for (s, seg) in block.segments.iter().enumerate() {
@@ -465,7 +570,7 @@ impl SparseCode<'_> {
                     let terms: Vec<TokenStream> = floors
                         .iter()
                         .map(|&(m, f)| {
-                            let (m, f) = (int(m), l.num(f));
+                            let (m, f) = (int(m), self.weight(l, f));
                             quote!(#gb[#m] * V::splat(#f))
                         })
                         .collect();
@@ -484,8 +589,21 @@ impl SparseCode<'_> {
                             quote!(gf)
                         } else {
                             ops += others.len();
+                            let bits = seg
+                                .inputs
+                                .iter()
+                                .enumerate()
+                                .filter(|&(o, _)| o != q)
+                                .map(|(_, &o)| self.sum_bits(o))
+                                .sum();
                             let others = join(others, &quote!(*));
-                            quote!(gf * #others)
+                            // Fixed point: the product holds the others' integer bits.
+                            let prod = quote!(gf * #others);
+                            if self.fixed {
+                                self.shifted(prod, bits)
+                            } else {
+                                prod
+                            }
                         };
                         let target = self.adjoint_name(g);
                         body.extend(quote!(#rt::add_all(&mut #target, #v);));
@@ -498,10 +616,15 @@ impl SparseCode<'_> {
         }
         ops += 2 * p.n * p.classes;
         let root = self.root();
-        body.extend(quote!(#rt::post_rows(x, &gx, #root, post);));
-        let (name, x) = (self.ident("post"), self.arg_x());
+        body.extend(if self.fixed {
+            // The wrapper (`fx_post`) divides by the value after checking it.
+            quote!(*post = gx;)
+        } else {
+            quote!(#rt::post_rows(x, &gx, #root, post);)
+        });
+        let (name, x, v) = (self.ident("post"), self.arg_x(), self.lane_type());
         (
-            quote!(#[inline(never)] fn #name(#x, post: &mut [[V; #c]; #n]) -> V { #body #root }),
+            quote!(#[inline(never)] fn #name(#x, post: &mut [[#v; #c]; #n]) -> #v { #body #root }),
             ops,
         )
     }

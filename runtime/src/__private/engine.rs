@@ -554,7 +554,7 @@ pub fn mix_rows<T: Real, const C: usize, const D: usize>(
 
 /// `a[i] += v` for every `i`.
 #[inline(always)]
-pub fn add_all<W: Lanes, const K: usize>(a: &mut [W; K], v: W) {
+pub fn add_all<W: Copy + core::ops::AddAssign, const K: usize>(a: &mut [W; K], v: W) {
     for o in a.iter_mut() {
         *o += v;
     }

@@ -271,12 +271,14 @@ flavour!(
 
 mod blocks;
 mod engine;
+mod fixed;
 mod fusion;
 mod lanes;
 mod tree;
 
 pub use blocks::*;
 pub use engine::*;
+pub use fixed::*;
 pub use fusion::{Fused, ln_shift};
 pub use lanes::*;
 pub use tree::*;

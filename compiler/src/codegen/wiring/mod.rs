@@ -46,11 +46,11 @@ use crate::map::TopoMap;
 
 use super::analysis::{Numerics, Unique, numerics, unique_components};
 use super::emit::{Lit, array, hex, int, int_array, rt};
-use super::kernels;
 use super::sparse::{Counts, SparseCode};
 use super::surface::{CodeReport, Surface, compiled_map_impl, constants_and_types, fused_bytes};
 use super::template::TemplateCode;
-use super::{CodegenError, CodegenOptions, Precision, Vectorisation};
+use super::{Arithmetic, CodegenError, CodegenOptions, Precision, Vectorisation};
+use super::{fixed, kernels};
 
 fn sanitize(name: &str) -> String {
     let s: String = name
@@ -80,6 +80,8 @@ struct Context {
     scalar: usize,
     /// Lanes of block templates (`1`: scalar code).
     simd_lanes: usize,
+    /// Fixed-point value and posterior functions for block templates.
+    fixed: bool,
 }
 
 impl Context {
@@ -94,6 +96,16 @@ impl Context {
         if n > usize::from(u16::MAX) {
             return Err(CodegenError::BadOption(format!(
                 "at most 65,535 places can be compiled, the map has {n}"
+            )));
+        }
+        let fixed = options.arithmetic == Arithmetic::Fixed;
+        if fixed
+            && (options.precision != Precision::F32
+                || options.vectorisation != Vectorisation::Scalar)
+        {
+            return Err(CodegenError::BadOption(format!(
+                "fixed-point arithmetic needs f32 scalar code, got {:?} {:?}",
+                options.precision, options.vectorisation
             )));
         }
         if d_count > 64 {
@@ -115,6 +127,7 @@ impl Context {
                 (Vectorisation::Simd, Precision::F32) => 8,
                 (Vectorisation::Simd, Precision::F64) => 4,
             },
+            fixed,
         })
     }
 }
@@ -209,28 +222,75 @@ fn plan_templates(model: &Model, uniques: &[Unique], cx: &Context) -> Vec<Tpl> {
 
 /// Floor + sparse block functions in lane groups (`sparse.rs`).
 fn block_code(tpl: &mut Tpl, plan: &kernels::Plan, cx: &Context) {
-    let code = SparseCode {
-        prefix: tpl.prefix.clone(),
-        plan,
-    };
+    let code = SparseCode::float(tpl.prefix.clone(), plan);
     let mut ops = |(tokens, ops): (TokenStream, usize)| {
         tpl.code.extend(tokens);
         ops
     };
+    let (fwd, post) = if cx.fixed {
+        fixed_code(&tpl.prefix, plan, cx, &mut ops)
+    } else {
+        (ops(code.fwd(&cx.l)), ops(code.post(&cx.l)))
+    };
     let counts = Counts {
-        fwd: ops(code.fwd(&cx.l)),
-        post: ops(code.post(&cx.l)),
+        fwd,
+        post,
         max: ops(code.max(&cx.l)),
         mpe: ops(code.mpe(&cx.l)),
     };
     let sums: usize = plan.blocks.iter().map(|b| b.sums.len()).sum();
     // Block values and adjoints, variable adjoints, MPE arguments and selections, and
     // room for spills of the straight-line temporaries (Cortex-M4F, 230-place map:
-    // the Star's MPE function has a 4.1 KB frame, its posterior function 2.2 KB).
-    tpl.frame = (2 * sums + tpl.vars * cx.c) * cx.simd_lanes * cx.scalar + 10 * sums + 4096;
+    // the Star's MPE function has a 4.1 KB frame, its posterior function 2.2 KB); the
+    // fixed-point wrappers' Q0.32 rows and adjoints.
+    let wrapper = if cx.fixed { 2 * tpl.vars * cx.c * 4 } else { 0 };
+    tpl.frame =
+        (2 * sums + tpl.vars * cx.c) * cx.simd_lanes * cx.scalar + 10 * sums + 4096 + wrapper;
     tpl.counts = counts;
     tpl.lanes = cx.simd_lanes;
     tpl.blocks = true;
+}
+
+/// The fixed-point kernel of a block template (see `codegen::fixed`): the `f32`
+/// functions as `<t>_fl_fwd` / `<t>_fl_post`, their Q0.32 twins `<t>_fx_*`, and the
+/// `<t>_fwd` / `<t>_post` the driver calls, which keep a fixed-point result above the
+/// function's threshold. Returns the fixed-point functions' multiply counts.
+fn fixed_code(
+    prefix: &str,
+    plan: &kernels::Plan,
+    cx: &Context,
+    ops: &mut impl FnMut((TokenStream, usize)) -> usize,
+) -> (usize, usize) {
+    let rt = rt();
+    let float = SparseCode::float(format!("{prefix}_fl"), plan);
+    let fx = SparseCode::fixed(format!("{prefix}_fx"), plan);
+    ops(float.fwd(&cx.l));
+    ops(float.post(&cx.l));
+    let entries = plan.n * plan.classes;
+    let fwd = ops(fx.fwd(&cx.l));
+    let units = fixed::error_units(fwd, entries, fx.take_shift_units());
+    let (_, min_fwd) = fixed::threshold(units, fixed::REL_BITS);
+    let post = ops(fx.post(&cx.l));
+    let units = fixed::error_units(post, entries, fx.take_shift_units());
+    let (_, min_post) = fixed::threshold(units, fixed::POST_BITS);
+    let id = |s: &str| format_ident!("{prefix}_{s}");
+    let (w_fwd, fl_fwd, fx_fwd) = (id("fwd"), id("fl_fwd"), id("fx_fwd"));
+    let (w_post, fl_post, fx_post) = (id("post"), id("fl_post"), id("fx_post"));
+    let (c, n) = (int(plan.classes), int(plan.n));
+    ops((
+        quote!(
+            #[inline(never)]
+            fn #w_fwd(x: &[[V; #c]; #n]) -> V {
+                #rt::fx_fwd(x, #min_fwd, #fx_fwd, #fl_fwd)
+            }
+            #[inline(never)]
+            fn #w_post(x: &[[V; #c]; #n], post: &mut [[V; #c]; #n]) -> V {
+                #rt::fx_post(x, post, #min_post, #fx_post, #fl_post)
+            }
+        ),
+        0,
+    ));
+    (fwd, post)
 }
 
 /// Per-node scalar functions (`template.rs`).

@@ -1,0 +1,133 @@
+//! The fixed-point kernel ([`super::Arithmetic::Fixed`]): Q0.32 integer versions of
+//! the block templates' value and posterior functions, for targets without an FPU.
+//!
+//! # What is emitted
+//!
+//! For every block template (`sparse.rs`, linear numerics) the generator emits, beside
+//! the `f32` functions (renamed `<t>_fl_fwd` / `<t>_fl_post`), their fixed-point twins
+//! `<t>_fx_fwd` / `<t>_fx_post` over `graphspn_runtime::__private::Fx` (an unsigned
+//! Q0.32 value `v / 2^32`), and the functions the driver calls, `<t>_fwd` / `<t>_post`,
+//! which convert the scaled rows to Q0.32 (integer operations only), run the
+//! fixed-point function and keep its result when the template value is at least the
+//! template's threshold, else call the `f32` function. Max-product and MPE functions
+//! stay `f32`.
+//!
+//! # Why no value overflows
+//!
+//! A linear-space template `T` has normalised weights and is evaluated on rows scaled
+//! to a largest entry of 1: it is a multilinear polynomial with non-negative
+//! coefficients, so every node value is at most its value with every entry at 1, which
+//! is 1. The same holds for every adjoint `∂T/∂v` (`T` is linear in each node value,
+//! and `T(1) = 1`). Entries are truncated to Q0.32 (1 becomes `1 − 2^-32`), weights
+//! are rounded down, and a product keeps the high word of the 64-bit product, so a
+//! computed value never exceeds the exact one, which is below 1: no sum overflows.
+//! The floor form's intermediates that exceed 1 are kept with integer bits: the sum of
+//! a vector of length `L` with `k = ⌈log₂ L⌉` bits ([`sum_bits`]), a product of such
+//! sums with the sum of their bits, and the floor weight is scaled to match
+//! ([`scaled_constant`]), the product shifted back when the weight needed it.
+//!
+//! # Error bound
+//!
+//! Each rounding loses less than one unit of `2^-32` (a shifted operation `2^s`
+//! units) and its sensitivity — the adjoint of what it rounds — is at most 1, so the
+//! root's absolute error is below `E·2^-32` with `E` counted per function:
+//! `2·(multiplies) + (evidence entries) + (shift units)` (each multiply rounds once and
+//! its constant once). The driver's function returns the fixed-point result only when
+//! the value `T` is at least `E·2^(k−32)` with `k` = [`REL_BITS`] (14): its relative
+//! error is then at most `2^-k`. The posterior function keeps its result when `T` is
+//! at least `E·2^(k−32)` with `k` = [`POST_BITS`] (11), its `E` counting the adjoints'
+//! errors the same way: every local posterior `x·(∂T/∂x)/T` is then off by at most
+//! `2^(1−k)` = `2^-10`. Below the threshold the `f32` function answers.
+//!
+//! End to end, with `K` components in the largest decomposition: the log-likelihood is
+//! off by at most `K·2^-14` nats (each decomposition's product of `K` values) plus the
+//! `f32` rounding of the float code, and a marginal by at most `2^-10 + 2K·2^-14` (its
+//! component's posterior, and the decomposition weights).
+
+use proc_macro2::{Literal, TokenStream};
+use quote::quote;
+
+use super::emit::hex;
+
+/// Relative error bits of a fixed-point template value: a value is kept when its
+/// error bound is at most `2^-REL_BITS` of it (see the module docs).
+pub const REL_BITS: u32 = 14;
+/// The same for the posterior function: its local posteriors are kept when their error
+/// bound is at most `2^(1 − POST_BITS)` (absolute), no looser than what the
+/// decomposition weights' error already allows for a marginal.
+pub const POST_BITS: u32 = 11;
+
+/// `w` as a Q0.32 constant `Fx(⌊w·2^32⌋)` (clamped to `[0, 2^32 − 1]`; the body of a
+/// fixed-point function imports `Fx`).
+pub fn constant(w: f64) -> TokenStream {
+    let v = hex(quantise(w));
+    quote!(Fx(#v))
+}
+
+/// `⌊w·2^32⌋` clamped to `[0, 2^32 − 1]`.
+fn quantise(w: f64) -> u64 {
+    let q = (w * 4_294_967_296.0).floor();
+    if q.is_nan() || q <= 0.0 {
+        0
+    } else {
+        (q as u64).min(u64::from(u32::MAX))
+    }
+}
+
+/// Integer bits of the sum of a vector of `len` entries in `[0, 1)`: `⌈log₂ len⌉`.
+pub fn sum_bits(len: usize) -> u32 {
+    len.max(1).next_power_of_two().trailing_zeros()
+}
+
+/// The floor weight `f` for a product of sums holding `bits` integer bits, as a Q0.32
+/// constant of `f·2^(bits − s)` and the shift `s` (smallest with `f·2^(bits − s) < 1`)
+/// that brings the product back to Q0.32.
+pub fn scaled_constant(f: f64, bits: u32) -> (TokenStream, u32) {
+    let mut s = 0;
+    while s < bits && f * 2f64.powi((bits - s) as i32) >= 1.0 {
+        s += 1;
+    }
+    (constant(f * 2f64.powi((bits - s) as i32)), s)
+}
+
+/// The error units `E` of a function with `multiplies` counted multiplies, `entries`
+/// evidence entries and `shift_units` from shifted operations (see the module docs).
+pub fn error_units(multiplies: usize, entries: usize, shift_units: usize) -> u64 {
+    (2 * multiplies + entries + shift_units) as u64
+}
+
+/// The smallest Q0.32 value kept from a function with `units` error units:
+/// `E·2^(bits − 32)` ([`REL_BITS`] or [`POST_BITS`]), as the raw `u32` (saturating: a
+/// function whose bound is that loose never keeps a result) and its literal.
+pub fn threshold(units: u64, bits: u32) -> (u64, Literal) {
+    let raw = units.saturating_mul(1 << bits).min(u64::from(u32::MAX));
+    (raw, Literal::u32_unsuffixed(raw as u32))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sums_get_enough_integer_bits() {
+        assert_eq!(sum_bits(1), 0);
+        assert_eq!(sum_bits(2), 1);
+        assert_eq!(sum_bits(10), 4);
+        assert_eq!(sum_bits(16), 4);
+        assert_eq!(sum_bits(17), 5);
+    }
+
+    #[test]
+    fn constants_round_down_and_floors_fit() {
+        assert_eq!(quantise(0.5), 1 << 31);
+        assert_eq!(quantise(1.0), u64::from(u32::MAX));
+        assert_eq!(quantise(-1e-9), 0);
+        assert_eq!(quantise(1e-12), 0);
+        // A floor of 1/100 over a product of two 10-class sums (8 bits): 2.56 needs
+        // two bits of shift.
+        let (_, s) = scaled_constant(0.01, 8);
+        assert_eq!(s, 2);
+        let (_, s) = scaled_constant(0.001, 8);
+        assert_eq!(s, 0);
+    }
+}

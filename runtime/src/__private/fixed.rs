@@ -1,0 +1,235 @@
+//! The fixed-point kernel for targets without a floating-point unit (RV32IMAC,
+//! Cortex-M0+/M3): template values and adjoints in unsigned Q0.32, `v / 2^32`.
+//!
+//! # Why Q0.32 holds every value
+//!
+//! A linear-space template (normalised weights, evidence rows scaled to a largest
+//! entry of 1) is a multilinear polynomial with non-negative coefficients, so every
+//! node value and every adjoint `∂T/∂node` is at most its value with every evidence
+//! entry at 1, which is `≤ 1` (see `graphspn-compiler`'s `codegen::fixed` module for
+//! the argument and the few intermediates — sums of a vector, floor products — that
+//! need integer bits and are kept shifted). Entries are truncated to Q0.32 (1.0 becomes
+//! `2^32 − 1`), weights are rounded down, and every product keeps the high word of the
+//! 64-bit product (`mulhu` on RISC-V, `umull` on Arm): each operation rounds *down*,
+//! so a computed value never exceeds the exact one and no sum overflows. Sums wrap
+//! (`wrapping_add`) only in the sense of not checking: the bound above excludes it.
+//!
+//! # Error bound
+//!
+//! Each truncation loses less than `2^-32`, and its sensitivity (the adjoint of the
+//! value it rounds) is `≤ 1`, so the root's absolute error is below `E·2^-32`, where
+//! the generator counts `E` per template function. The wrappers here return the
+//! fixed-point result only when the root is at least `min` (the generator's
+//! `E·2^(k−32)`, a relative error `≤ 2^-k`), and otherwise evaluate the template's
+//! `f32` functions: small values, where the absolute error would matter, are never
+//! answered by the integer kernel.
+
+use core::ops::{Add, AddAssign, Mul};
+
+/// An unsigned Q0.32 fixed-point value `self.0 / 2^32` (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+#[repr(transparent)]
+pub struct Fx(pub u32);
+
+impl Fx {
+    /// `0`.
+    pub const ZERO: Fx = Fx(0);
+    /// `1 − 2^-32`, the largest value (stands for 1: the product of a value and `ONE`
+    /// rounds down by less than `2^-32`).
+    pub const ONE: Fx = Fx(u32::MAX);
+
+    /// The value itself (the generated code's spelling of a constant).
+    #[inline(always)]
+    pub fn splat(v: Fx) -> Fx {
+        v
+    }
+
+    /// `Σ_i v_i · 2^-s`: the sum of a vector kept with `s` integer bits (the generator
+    /// picks `s` with `2^s ≥` the vector's length, so it cannot overflow).
+    #[inline(always)]
+    pub fn sum_shr<const K: usize>(v: &[Fx; K], s: u32) -> Fx {
+        let mut acc = 0u32;
+        for x in v {
+            acc = acc.wrapping_add(x.0 >> s);
+        }
+        Fx(acc)
+    }
+
+    /// The largest entry (`0` for an empty array).
+    #[inline(always)]
+    pub fn max_of<const K: usize>(v: &[Fx; K]) -> Fx {
+        let mut m = 0u32;
+        for x in v {
+            m = m.max(x.0);
+        }
+        Fx(m)
+    }
+
+    /// `self · 2^s` (the generator shifts only values whose exact result is `< 1`).
+    #[inline(always)]
+    pub fn times_pow2(self, s: u32) -> Fx {
+        Fx(self.0 << s)
+    }
+}
+
+impl Mul for Fx {
+    type Output = Fx;
+    /// The product, rounded down (the high word of the 64-bit product).
+    #[inline(always)]
+    fn mul(self, o: Fx) -> Fx {
+        Fx(((u64::from(self.0) * u64::from(o.0)) >> 32) as u32)
+    }
+}
+
+impl Add for Fx {
+    type Output = Fx;
+    /// The sum (the generator's bounds keep it below `2^32`).
+    #[inline(always)]
+    fn add(self, o: Fx) -> Fx {
+        Fx(self.0.wrapping_add(o.0))
+    }
+}
+
+impl AddAssign for Fx {
+    #[inline(always)]
+    fn add_assign(&mut self, o: Fx) {
+        *self = *self + o;
+    }
+}
+
+/// The lane operations generated fixed-point code calls as `Lanes::mul_add` and
+/// `Lanes::max` (the same spelling as the float kernels).
+pub trait FxLanes {
+    /// `self·a + b`, the product rounded down.
+    fn mul_add(self, a: Self, b: Self) -> Self;
+    /// The larger value.
+    fn max(self, o: Self) -> Self;
+}
+
+impl FxLanes for Fx {
+    #[inline(always)]
+    fn mul_add(self, a: Fx, b: Fx) -> Fx {
+        self * a + b
+    }
+    #[inline(always)]
+    fn max(self, o: Fx) -> Fx {
+        Fx(self.0.max(o.0))
+    }
+}
+
+/// `v` in `[0, 1]` as Q0.32, rounded down (`1.0` and above give [`Fx::ONE`], values
+/// below `2^-32`, `-0.0` and other negative or NaN inputs of unchecked evidence give 0
+/// or `ONE`, never a panic). Integer operations only: no soft-float call.
+#[inline(always)]
+pub fn fx_from_f32(v: f32) -> Fx {
+    let b = v.to_bits();
+    if b >> 31 != 0 {
+        return Fx::ZERO;
+    }
+    // v = m · 2^(e − 150) with the implicit bit, so v · 2^32 = m · 2^(e − 118).
+    let e = (b >> 23) as i32;
+    let m = (b & 0x7f_ffff) | 0x80_0000;
+    let s = e - 118;
+    if s >= 9 {
+        Fx::ONE
+    } else if s >= 0 {
+        Fx(m << s)
+    } else if s > -24 {
+        Fx(m >> -s)
+    } else {
+        Fx::ZERO
+    }
+}
+
+/// The value of `v` as `f32` (one rounding).
+#[inline(always)]
+pub fn fx_to_f32(v: Fx) -> f32 {
+    v.0 as f32 * (1.0 / 4_294_967_296.0)
+}
+
+/// The scaled rows of a component (`[0, 1]`, largest entry 1) as Q0.32.
+#[inline(always)]
+pub fn fx_rows<const C: usize, const NV: usize>(x: &[[f32; C]; NV]) -> [[Fx; C]; NV] {
+    let mut q = [[Fx::ZERO; C]; NV];
+    for (qr, xr) in q.iter_mut().zip(x) {
+        for (o, &v) in qr.iter_mut().zip(xr) {
+            *o = fx_from_f32(v);
+        }
+    }
+    q
+}
+
+/// A template's value on scaled rows `x` by its fixed-point function `fx`, or by its
+/// `f32` function `fl` when the fixed-point value is below `min` (see the module
+/// docs: the result then has relative error `≤ 2^-k` or is the `f32` one).
+#[inline(always)]
+pub fn fx_fwd<const C: usize, const NV: usize>(
+    x: &[[f32; C]; NV],
+    min: u32,
+    fx: impl FnOnce(&[[Fx; C]; NV]) -> Fx,
+    fl: impl FnOnce(&[[f32; C]; NV]) -> f32,
+) -> f32 {
+    let v = fx(&fx_rows(x));
+    if v.0 >= min { fx_to_f32(v) } else { fl(x) }
+}
+
+/// A template's value and local posteriors `post[i][c] = x_i[c]·∂T/∂x_i[c] / T` by its
+/// fixed-point function `fx` (which returns the value and writes the adjoints), or by
+/// its `f32` function `fl` when the value is below `min`.
+#[inline(always)]
+pub fn fx_post<const C: usize, const NV: usize>(
+    x: &[[f32; C]; NV],
+    post: &mut [[f32; C]; NV],
+    min: u32,
+    fx: impl FnOnce(&[[Fx; C]; NV], &mut [[Fx; C]; NV]) -> Fx,
+    fl: impl FnOnce(&[[f32; C]; NV], &mut [[f32; C]; NV]) -> f32,
+) -> f32 {
+    let q = fx_rows(x);
+    let mut g = [[Fx::ZERO; C]; NV];
+    let v = fx(&q, &mut g);
+    if v.0 < min {
+        return fl(x, post);
+    }
+    let inv = 1.0 / v.0 as f32;
+    for ((pr, qr), gr) in post.iter_mut().zip(&q).zip(&g) {
+        for ((o, &a), &b) in pr.iter_mut().zip(qr).zip(gr) {
+            *o = (a * b).0 as f32 * inv;
+        }
+    }
+    fx_to_f32(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn conversion_rounds_down_and_saturates() {
+        assert_eq!(fx_from_f32(1.0), Fx::ONE);
+        assert_eq!(fx_from_f32(2.0), Fx::ONE);
+        assert_eq!(fx_from_f32(f32::INFINITY), Fx::ONE);
+        assert_eq!(fx_from_f32(0.5), Fx(1 << 31));
+        assert_eq!(fx_from_f32(0.0), Fx::ZERO);
+        assert_eq!(fx_from_f32(-0.0), Fx::ZERO);
+        assert_eq!(fx_from_f32(-1.0), Fx::ZERO);
+        assert_eq!(fx_from_f32(1e-12), Fx(0));
+        assert_eq!(fx_from_f32(f32::MIN_POSITIVE), Fx::ZERO);
+        for &v in &[0.3f32, 1e-3, 0.999_999_9, 2.5e-10, 7.1e-5] {
+            let want = (f64::from(v) * 4_294_967_296.0).floor();
+            assert_eq!(f64::from(fx_from_f32(v).0), want, "{v:e}");
+        }
+        assert_eq!(fx_to_f32(Fx(1 << 30)), 0.25);
+    }
+
+    #[test]
+    fn products_round_down() {
+        let (a, b) = (Fx(3_000_000_000), Fx(4_000_000_000));
+        let exact = 3e9 * 4e9 / 4_294_967_296.0;
+        assert_eq!(f64::from((a * b).0), f64::floor(exact));
+        assert_eq!(Fx::ONE * Fx::ONE, Fx(u32::MAX - 1));
+        assert_eq!(Fx::mul_add(a, Fx::ONE, Fx(5)), Fx(3_000_000_000 - 1 + 5));
+        assert_eq!(Fx::sum_shr(&[Fx::ONE; 10], 4).0, 10 * (u32::MAX >> 4));
+        assert_eq!(Fx::max_of(&[Fx(3), Fx(9), Fx(1)]), Fx(9));
+        assert_eq!(Fx(3).times_pow2(2), Fx(12));
+    }
+}
