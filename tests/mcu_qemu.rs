@@ -718,10 +718,10 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
 }
 
 /// The fixed-point kernel's documented error bound for an instance (see the
-/// generator's `codegen::fixed` module): each template value off by at most `2^-14` of
+/// generator's `codegen::fixed` module): each template value off by at most `2^-13` of
 /// itself and each local posterior by `2^-10`, so with `K` components in the largest
-/// decomposition the log-likelihood is off by at most `K·2^-14` (plus `f32` rounding
-/// of the sum, 1e-3 here) and a marginal by `2^-10 + 2K·2^-14` (the decomposition
+/// decomposition the log-likelihood is off by at most `K·2^-13` (plus `f32` rounding
+/// of the sum, 1e-3 here) and a marginal by `2^-10 + 2K·2^-13` (the decomposition
 /// weights' relative error).
 fn fixed_bounds(inst: &Instance) -> (f64, f64) {
     let k = inst
@@ -730,8 +730,8 @@ fn fixed_bounds(inst: &Instance) -> (f64, f64) {
         .map(|d| d.components.len())
         .max()
         .unwrap_or(0) as f64;
-    let unit = 2f64.powi(-14);
-    (k * unit + 1e-3, 16.0 * unit + 2.0 * k * unit)
+    let unit = 2f64.powi(-13);
+    (k * unit + 1e-3, 8.0 * unit + 2.0 * k * unit)
 }
 
 /// How many of a map's numbers differ in bits from the x86-64-v3 host build `host`

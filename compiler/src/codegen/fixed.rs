@@ -37,12 +37,15 @@
 //! error is then at most `2^-k`. The posterior function keeps its result when `T` is
 //! at least `E·2^(k−32)` with `k` = [`POST_BITS`] (11), its `E` counting the adjoints'
 //! errors the same way: every local posterior `x·(∂T/∂x)/T` is then off by at most
-//! `2^(1−k)` = `2^-10`. Below the threshold the `f32` function answers.
+//! `2^(1−k)` = `2^-10`, and its value (the same forward sweep) by `2^-13` of itself
+//! (its threshold is also at least the value function's over 2). Below the threshold
+//! the `f32` function answers.
 //!
 //! End to end, with `K` components in the largest decomposition: the log-likelihood is
-//! off by at most `K·2^-14` nats (each decomposition's product of `K` values) plus the
-//! `f32` rounding of the float code, and a marginal by at most `2^-10 + 2K·2^-14` (its
-//! component's posterior, and the decomposition weights).
+//! off by at most `K·2^-13` nats (each decomposition's product of `K` values; the
+//! streaming state keeps the posterior function's values) plus the `f32` rounding of
+//! the float code, and a marginal by at most `2^-10 + 2K·2^-13` (its component's
+//! posterior, and the decomposition weights).
 
 use proc_macro2::{Literal, TokenStream};
 use quote::quote;
@@ -97,11 +100,23 @@ pub fn error_units(multiplies: usize, entries: usize, shift_units: usize) -> u64
 }
 
 /// The smallest Q0.32 value kept from a function with `units` error units:
-/// `E·2^(bits − 32)` ([`REL_BITS`] or [`POST_BITS`]), as the raw `u32` (saturating: a
-/// function whose bound is that loose never keeps a result) and its literal.
-pub fn threshold(units: u64, bits: u32) -> (u64, Literal) {
-    let raw = units.saturating_mul(1 << bits).min(u64::from(u32::MAX));
-    (raw, Literal::u32_unsuffixed(raw as u32))
+/// `E·2^(bits − 32)` ([`REL_BITS`] or [`POST_BITS`]), as a raw `u32` (saturating: a
+/// function whose bound is that loose never keeps a result).
+pub fn threshold(units: u64, bits: u32) -> u64 {
+    units.saturating_mul(1 << bits).min(u64::from(u32::MAX))
+}
+
+/// The thresholds of a template's value and posterior functions, from their error
+/// units, as literals: the posterior function's value comes from the same forward
+/// sweep as the value function's, so its threshold also keeps that value within
+/// `2^(1 − REL_BITS)` of itself.
+pub fn thresholds(fwd_units: u64, post_units: u64) -> (Literal, Literal) {
+    let fwd = threshold(fwd_units, REL_BITS);
+    let post = threshold(post_units, POST_BITS).max(threshold(fwd_units, REL_BITS - 1));
+    (
+        Literal::u32_unsuffixed(fwd as u32),
+        Literal::u32_unsuffixed(post as u32),
+    )
 }
 
 #[cfg(test)]

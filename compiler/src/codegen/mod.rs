@@ -99,7 +99,8 @@ pub enum Arithmetic {
     Float,
     /// Q0.32 fixed-point value and posterior functions for block templates (integer
     /// multiplies and adds: no soft-float calls), each result kept only when its error
-    /// bound is at most `2^-14` of it, else recomputed in `f32` (see the generator's
+    /// bound is small enough (values within `2^-13` of themselves, local posteriors
+    /// within `2^-10`), else recomputed in `f32` (see the generator's
     /// `fixed` module). The rest of the module (evidence scaling, decomposition mixing,
     /// MPE) stays `f32`. Needs [`Precision::F32`] and [`Vectorisation::Scalar`];
     /// GraphSPN modules only (a tree mixture always computes in floats).

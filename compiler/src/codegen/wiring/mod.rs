@@ -268,11 +268,10 @@ fn fixed_code(
     ops(float.post(&cx.l));
     let entries = plan.n * plan.classes;
     let fwd = ops(fx.fwd(&cx.l));
-    let units = fixed::error_units(fwd, entries, fx.take_shift_units());
-    let (_, min_fwd) = fixed::threshold(units, fixed::REL_BITS);
+    let fwd_units = fixed::error_units(fwd, entries, fx.take_shift_units());
     let post = ops(fx.post(&cx.l));
-    let units = fixed::error_units(post, entries, fx.take_shift_units());
-    let (_, min_post) = fixed::threshold(units, fixed::POST_BITS);
+    let post_units = fixed::error_units(post, entries, fx.take_shift_units());
+    let (min_fwd, min_post) = fixed::thresholds(fwd_units, post_units);
     let id = |s: &str| format_ident!("{prefix}_{s}");
     let (w_fwd, fl_fwd, fx_fwd) = (id("fwd"), id("fl_fwd"), id("fx_fwd"));
     let (w_post, fl_post, fx_post) = (id("post"), id("fl_post"), id("fx_post"));
