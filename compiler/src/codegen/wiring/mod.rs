@@ -262,7 +262,9 @@ fn fixed_code(
     ops: &mut impl FnMut((TokenStream, usize)) -> usize,
 ) -> (usize, usize) {
     let rt = rt();
+    // lint: the prefix of the f32 functions' identifiers (format_ident! at each use)
     let float = SparseCode::float(format!("{prefix}_fl"), plan);
+    // lint: the prefix of the fixed-point twins' identifiers
     let fx = SparseCode::fixed(format!("{prefix}_fx"), plan);
     ops(float.fwd(&cx.l));
     ops(float.post(&cx.l));
