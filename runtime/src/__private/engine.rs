@@ -165,15 +165,31 @@ pub fn log_scale<T: Real, const N: usize, const C: usize>(e: &[[T; C]; N], label
     acc.ln()
 }
 
+/// Whether float operations are library calls here: targets other than x86, AArch64
+/// and Arm with the hard-float ABI (Cortex-M3, RV32IMAC, ...). On a Cortex-M4F the
+/// integer form of a compare costs more than the float one.
+const SOFT_FLOAT: bool = !cfg!(any(
+    target_arch = "x86_64",
+    target_arch = "x86",
+    target_arch = "aarch64",
+    target_abi = "eabihf"
+));
+
 /// The largest value of `row`, or the value of `label` when `label < C`.
 #[inline(always)]
 fn row_scale<T: Real, const C: usize>(row: &[T; C], label: u16) -> T {
     match row.get(usize::from(label)) {
         Some(&v) => v,
-        None => row
-            .iter()
-            .copied()
-            .fold(T::ZERO, |a, b| if b > a { b } else { a }),
+        // Without an FPU, integer compares of the magnitudes (the same result for the
+        // values `≥ 0` of checked evidence) instead of soft-float compare calls.
+        None => row.iter().copied().fold(T::ZERO, |a, b| {
+            let larger = if SOFT_FLOAT {
+                b.magnitude_key() > a.magnitude_key()
+            } else {
+                b > a
+            };
+            if larger { b } else { a }
+        }),
     }
 }
 

@@ -190,13 +190,51 @@ pub fn fx_post<const C: usize, const NV: usize>(
     if v.0 < min {
         return fl(x, post);
     }
-    let inv = 1.0 / v.0 as f32;
+    let ratio = Ratio::new(v);
     for ((pr, qr), gr) in post.iter_mut().zip(&q).zip(&g) {
         for ((o, &a), &b) in pr.iter_mut().zip(qr).zip(gr) {
-            *o = (a * b).0 as f32 * inv;
+            *o = ratio.of(a * b);
         }
     }
     fx_to_f32(v)
+}
+
+/// Division by a fixed Q0.32 value `v > 0` in integer operations (no soft-float
+/// call): `v` normalised to `[2^31, 2^32)` by a shift `s`, and `2^63 / (v·2^s)`
+/// computed once.
+struct Ratio {
+    /// The normalising shift.
+    s: u32,
+    /// `v` itself.
+    v: u32,
+    /// `⌊2^63 / vn⌋`, at most `2^32 − 1`.
+    r: u32,
+}
+
+impl Ratio {
+    #[inline(always)]
+    fn new(v: Fx) -> Ratio {
+        let v = v.0.max(1);
+        let s = v.leading_zeros();
+        let r = ((1u64 << 63) / u64::from(v << s)).min(u64::from(u32::MAX)) as u32;
+        Ratio { s, v, r }
+    }
+
+    /// `min(p, v) / v` as `f32`, rounded down (error below `2^-22` of it plus
+    /// `2^-30`).
+    #[inline(always)]
+    fn of(&self, p: Fx) -> f32 {
+        // min(p, v)·2^s < 2^32, and q = ⌊p·2^s·r / 2^32⌋ ≈ (p / v)·2^31 ≤ 2^31.
+        let pn = p.0.min(self.v) << self.s;
+        let q = ((u64::from(pn) * u64::from(self.r)) >> 32) as u32;
+        if q == 0 {
+            return 0.0;
+        }
+        // q = 1.m · 2^(31 − z): the value q·2^-31 has exponent −z.
+        let z = q.leading_zeros();
+        let mantissa = ((q << z) << 1) >> 9;
+        f32::from_bits(((127 - z) << 23) | mantissa)
+    }
 }
 
 #[cfg(test)]
@@ -219,6 +257,22 @@ mod tests {
             assert_eq!(f64::from(fx_from_f32(v).0), want, "{v:e}");
         }
         assert_eq!(fx_to_f32(Fx(1 << 30)), 0.25);
+    }
+
+    #[test]
+    fn ratios_match_float_division() {
+        for &v in &[1u32, 7, 1 << 20, 3_000_000_000, u32::MAX, 1 << 31] {
+            let ratio = Ratio::new(Fx(v));
+            for &p in &[0u32, 1, v / 3, v / 2, v - v / 7, v, v.saturating_add(5)] {
+                let want = f64::from(p.min(v)) / f64::from(v);
+                let got = f64::from(ratio.of(Fx(p)));
+                assert!(
+                    got <= want * (1.0 + 1e-12)
+                        && want - got <= want * 2f64.powi(-22) + 2f64.powi(-30),
+                    "{p} / {v}: {got} vs {want}"
+                );
+            }
+        }
     }
 
     #[test]

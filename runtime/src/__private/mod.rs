@@ -321,6 +321,10 @@ pub trait Real:
     /// `(finite and ≥ +0, > 0)` from the bit pattern alone (integer compares, no float
     /// compare: cheap without an FPU). `-0.0` reads as not `≥ +0`.
     fn plain_mass(self) -> (bool, bool);
+    /// The magnitude's bits as an integer (sign cleared): for values `≥ 0` (and
+    /// `-0.0`), ordered as the values are, so the largest entry of an evidence row is
+    /// found by integer compares (no soft-float call without an FPU).
+    fn magnitude_key(self) -> u64;
     /// `(m, e)` with `self = m·2^e` exactly and `m` in `[1, 2)`; zero, infinite and NaN
     /// values are returned unchanged with `e = 0`, subnormals are normalised.
     fn split(self) -> (Self, i32);
@@ -340,7 +344,7 @@ pub trait Real:
 }
 
 macro_rules! real_impl {
-    ($t:ident, $bits:ident, $mant:expr, $bias:expr, $emask:expr, $ln:path, $exp:path, $tiny:expr, $product:expr) => {
+    ($t:ident, $bits:ident, $mant:expr, $ebits:expr, $bias:expr, $emask:expr, $ln:path, $exp:path, $tiny:expr, $product:expr) => {
         impl Real for $t {
             const TINY_EXP: i32 = $tiny;
             const PRODUCT_FLUSH_EXP: i32 = $product;
@@ -389,6 +393,10 @@ macro_rules! real_impl {
                 (b < inf, b.wrapping_sub(1) < inf - 1)
             }
             #[inline(always)]
+            fn magnitude_key(self) -> u64 {
+                u64::from(self.to_bits() & !(1 << ($mant + $ebits)))
+            }
+            #[inline(always)]
             fn split(self) -> ($t, i32) {
                 let mut v = self;
                 let mut shift = 0i32;
@@ -416,8 +424,19 @@ macro_rules! real_impl {
     };
 }
 
-real_impl!(f32, u32, 23, 127, 0xff, libm::logf, libm::expf, -80, -24);
-real_impl!(f64, u64, 52, 1023, 0x7ff, libm::log, libm::exp, -600, -200);
+real_impl!(f32, u32, 23, 8, 127, 0xff, libm::logf, libm::expf, -80, -24);
+real_impl!(
+    f64,
+    u64,
+    52,
+    11,
+    1023,
+    0x7ff,
+    libm::log,
+    libm::exp,
+    -600,
+    -200
+);
 
 /// The scaled rows of places `p` (see `prep_f32`): `x = α/max α`, or the one-hot row of
 /// the place's label when it is `< C`. Out-of-range places give zero rows.
