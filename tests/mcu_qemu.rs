@@ -1210,7 +1210,8 @@ fn firmware_build_dependencies_have_no_host_only_crates() {
     }
 }
 
-/// The no-panic link check of `generated_no_std.rs`, for Cortex-M4F.
+/// The no-panic link check of `generated_no_std.rs`, for Cortex-M4F (the fixed-point
+/// kernel included).
 #[test]
 fn generated_code_links_for_cortex_m4f_without_any_panic_path() {
     setup();

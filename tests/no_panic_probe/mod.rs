@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-use graphspn::codegen::{Builder, Precision, Vectorisation};
+use graphspn::codegen::{Arithmetic, Builder, Precision, Vectorisation};
 
 fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
@@ -30,19 +30,30 @@ pub fn demo_tree_source_for(precision: Precision, v: Vectorisation) -> String {
 
 /// The demo floor compiled with the model file `model` in the given form.
 fn demo_model_source(model: &str, precision: Precision, v: Vectorisation) -> String {
+    demo_builder(model, precision, v).generate().unwrap()
+}
+
+fn demo_builder(model: &str, precision: Precision, v: Vectorisation) -> Builder {
     Builder::new(demo().join(model), demo().join("floor.json"))
         .seed(0)
         .count(5)
         .precision(precision)
         .vectorisation(v)
+}
+
+/// The demo floor's GraphSPN with the fixed-point kernel (targets without an FPU).
+pub fn demo_fixed_source() -> String {
+    demo_builder("model.json", Precision::F32, Vectorisation::Scalar)
+        .arithmetic(Arithmetic::Fixed)
         .generate()
         .unwrap()
 }
 
 /// A `#![no_std]`, `#![no_main]` binary without an allocator, linked with `panic =
 /// "abort"` and fat LTO, that calls every entry point of the generated demo modules of
-/// both model families (GraphSPN and tree mixture; f32 and f64, SIMD and scalar:
-/// checked, unchecked, through `CompiledMap` and the streaming state) on opaque inputs. Its panic
+/// both model families (GraphSPN and tree mixture; f32 and f64, SIMD and scalar, the
+/// GraphSPN also with the fixed-point kernel: checked, unchecked, through
+/// `CompiledMap` and the streaming state) on opaque inputs. Its panic
 /// handler calls a symbol that is defined nowhere, so the binary links only if the
 /// optimiser removed every path to a panic: this proves that the generated code and
 /// the runtime helpers it calls cannot panic, need neither `std` nor `alloc` (either
@@ -67,6 +78,7 @@ pub fn link_check(target: Option<&str>) {
         std::fs::create_dir_all(dir.path().join("src")).unwrap();
         std::fs::write(dir.path().join(format!("src/{module}.rs")), src).unwrap();
     }
+    std::fs::write(dir.path().join("src/x32.rs"), demo_fixed_source()).unwrap();
     let runtime = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("runtime");
     std::fs::write(
         dir.path().join("Cargo.toml"),
@@ -122,7 +134,7 @@ const UNDEFINED_ON_PANIC: &str = "graphspn_generated_code_reaches_a_panic";
 
 /// `src/main.rs` of the probe binary (modules `m32`, `m64`, `s32`: the demo floor's
 /// GraphSPN in f32 and f64 SIMD form and f32 scalar form; `t32`, `t64`, `v32`: its tree
-/// mixture in the same forms).
+/// mixture in the same forms; `x32`: the GraphSPN with the fixed-point kernel).
 const NO_PANIC_PROBE: &str = r#"
 #![no_std]
 #![no_main]
@@ -142,6 +154,8 @@ mod t32 { include!("t32.rs"); }
 mod t64 { include!("t64.rs"); }
 #[cfg(not(panic_control))]
 mod v32 { include!("v32.rs"); }
+#[cfg(not(panic_control))]
+mod x32 { include!("x32.rs"); }
 
 unsafe extern "C" {
     /// Defined nowhere: the binary links only if no path reaches the panic handler.
@@ -208,6 +222,7 @@ pub extern "C" fn _start() -> ! {
         exercise!(t32);
         exercise!(t64);
         exercise!(v32);
+        exercise!(x32);
     }
     #[cfg(panic_control)]
     {

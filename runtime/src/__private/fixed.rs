@@ -216,7 +216,10 @@ impl Ratio {
     fn new(v: Fx) -> Ratio {
         let v = v.0.max(1);
         let s = v.leading_zeros();
-        let r = ((1u64 << 63) / u64::from(v << s)).min(u64::from(u32::MAX)) as u32;
+        // `v << s ≥ 2^31`: the division never fails (checked: no panic path).
+        let r = (1u64 << 63)
+            .checked_div(u64::from(v << s))
+            .map_or(u32::MAX, |r| r.min(u64::from(u32::MAX)) as u32);
         Ratio { s, v, r }
     }
 
