@@ -29,17 +29,21 @@
 //! # Error bound
 //!
 //! Each rounding loses less than one unit of `2^-32` (a shifted operation `2^s`
-//! units) and its sensitivity — the adjoint of what it rounds — is at most 1, so the
-//! root's absolute error is below `E·2^-32` with `E` counted per function:
-//! `2·(multiplies) + (evidence entries) + (shift units)` (each multiply rounds once and
-//! its constant once). The driver's function returns the fixed-point result only when
-//! the value `T` is at least `E·2^(k−32)` with `k` = [`REL_BITS`] (14): its relative
-//! error is then at most `2^-k`. The posterior function keeps its result when `T` is
-//! at least `E·2^(k−32)` with `k` = [`POST_BITS`] (11), its `E` counting the adjoints'
-//! errors the same way: every local posterior `x·(∂T/∂x)/T` is then off by at most
-//! `2^(1−k)` = `2^-10`, and its value (the same forward sweep) by `2^-13` of itself
-//! (its threshold is also at least the value function's over 2). Below the threshold
-//! the `f32` function answers.
+//! units), and moves the root by at most that times its sensitivity — the adjoint of
+//! what it rounds, which is at most its adjoint with every entry at 1 ([`AtOnes`]).
+//! The value function's bound `E` weights every sum row's roundings (two per counted
+//! multiply: the product and its constant) by the row's adjoint at ones, the floor
+//! form's vector sums and products by theirs, and the entries' truncations by theirs
+//! (a first-order bound: second-order terms are below `2^-64` per pair). The
+//! posterior function's `E` adds every backward rounding at sensitivity 1 (an
+//! adjoint's error reaches a local posterior with a factor at most 1). The driver's
+//! function returns the fixed-point result only when the value `T` is at least
+//! `E·2^(k−32)` with `k` = [`REL_BITS`] (14): its relative error is then at most
+//! `2^-k`. The posterior function keeps its result when `T` is at least `E·2^(k−32)`
+//! with `k` = [`POST_BITS`] (11): every local posterior `x·(∂T/∂x)/T` is then off by at
+//! most `2^(1−k)` = `2^-10`, and its value (the same forward sweep) by `2^-13` of
+//! itself (its threshold is also at least the value function's over 2). Below the
+//! threshold the `f32` function answers.
 //!
 //! End to end, with `K` components in the largest decomposition: the log-likelihood is
 //! off by at most `K·2^-13` nats (each decomposition's product of `K` values; the
@@ -51,6 +55,7 @@ use proc_macro2::{Literal, TokenStream};
 use quote::quote;
 
 use super::emit::hex;
+use super::kernels::{Plan, Segment};
 
 /// Relative error bits of a fixed-point template value: a value is kept when its
 /// error bound is at most `2^-REL_BITS` of it (see the module docs).
@@ -93,6 +98,87 @@ pub fn scaled_constant(f: f64, bits: u32) -> (TokenStream, u32) {
     (constant(f * 2f64.powi((bits - s) as i32)), s)
 }
 
+/// A template's vectors (variables, then blocks) with every evidence entry at 1: each
+/// entry's value and its adjoint `∂T/∂v` there. Values and adjoints only grow with the
+/// entries (non-negative weights), so these bound them for every scaled evidence, and
+/// an adjoint at ones bounds how much a rounding in that entry moves the root.
+pub struct AtOnes {
+    /// `value[g][i]`.
+    pub value: Vec<Vec<f64>>,
+    /// `adjoint[g][i]`.
+    pub adjoint: Vec<Vec<f64>>,
+}
+
+/// The per-input indices of tuple `t` of `seg` (row-major, first input slowest).
+fn tuple_of(seg: &Segment, mut t: usize) -> Vec<usize> {
+    let mut idx = vec![0; seg.dims.len()];
+    for (q, &d) in seg.dims.iter().enumerate().rev() {
+        idx[q] = t % d;
+        t /= d;
+    }
+    idx
+}
+
+impl AtOnes {
+    /// Evaluates `plan` at ones, forward and backward (one pass over its weights).
+    pub fn of(plan: &Plan) -> AtOnes {
+        let mut value: Vec<Vec<f64>> = vec![vec![1.0; plan.classes]; plan.n];
+        for block in &plan.blocks {
+            let mut v = vec![0.0; block.sums.len()];
+            for seg in &block.segments {
+                for (m, w) in seg.weights.iter().enumerate() {
+                    for (t, &wt) in w.iter().enumerate().filter(|(_, w)| **w > 0.0) {
+                        let idx = tuple_of(seg, t);
+                        let p: f64 = seg
+                            .inputs
+                            .iter()
+                            .zip(&idx)
+                            .map(|(&g, &i)| value[g][i])
+                            .product();
+                        v[m] += wt * p;
+                    }
+                }
+            }
+            value.push(v);
+        }
+        let mut adjoint: Vec<Vec<f64>> = value.iter().map(|v| vec![0.0; v.len()]).collect();
+        adjoint[plan.n + plan.root.0][plan.root.1] = 1.0;
+        for (b, block) in plan.blocks.iter().enumerate().rev() {
+            for seg in &block.segments {
+                for (m, w) in seg.weights.iter().enumerate() {
+                    let a = adjoint[plan.n + b][m];
+                    for (t, &wt) in w.iter().enumerate().filter(|(_, w)| **w > 0.0 && a > 0.0) {
+                        let idx = tuple_of(seg, t);
+                        for q in 0..seg.inputs.len() {
+                            let others: f64 = (0..seg.inputs.len())
+                                .filter(|&o| o != q)
+                                .map(|o| value[seg.inputs[o]][idx[o]])
+                                .product();
+                            adjoint[seg.inputs[q]][idx[q]] += a * wt * others;
+                        }
+                    }
+                }
+            }
+        }
+        AtOnes { value, adjoint }
+    }
+
+    /// The adjoint of row `m` of block `b`.
+    pub fn row(&self, n: usize, b: usize, m: usize) -> f64 {
+        self.adjoint[n + b][m]
+    }
+
+    /// The sum of vector `g`'s values.
+    pub fn sum(&self, g: usize) -> f64 {
+        self.value[g].iter().sum()
+    }
+
+    /// The error units of truncating the evidence entries: `Σ` of their adjoints.
+    pub fn entry_units(&self, n: usize) -> f64 {
+        self.adjoint[..n].iter().flatten().sum()
+    }
+}
+
 /// The error units `E` of a function with `multiplies` counted multiplies, `entries`
 /// evidence entries and `shift_units` from shifted operations (see the module docs).
 pub fn error_units(multiplies: usize, entries: usize, shift_units: usize) -> u64 {
@@ -122,6 +208,36 @@ pub fn thresholds(fwd_units: u64, post_units: u64) -> (Literal, Literal) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// At ones a normalised template is 1, each variable's entry adjoints add up to 1
+    /// (`T` is linear in each row, and `T(1) = 1`), and no row's adjoint exceeds 1.
+    #[test]
+    fn values_and_adjoints_at_ones_match_the_model() {
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let model = crate::learn::Model::load(dir.join("../generated/demo/model.json")).unwrap();
+        let mut planned = 0;
+        for spn in &model.spns {
+            let Some(plan) = crate::codegen::kernels::plan(spn, model.classes.len()) else {
+                continue;
+            };
+            planned += 1;
+            let o = AtOnes::of(&plan);
+            let root = o.value[plan.n + plan.root.0][plan.root.1];
+            assert!((root - 1.0).abs() < 1e-9, "root {root}");
+            for v in 0..plan.n {
+                let s: f64 = o.adjoint[v].iter().sum();
+                assert!((s - 1.0).abs() < 1e-9, "variable {v}: {s}");
+            }
+            assert!((o.entry_units(plan.n) - plan.n as f64).abs() < 1e-6);
+            assert!(
+                o.adjoint[plan.n..]
+                    .iter()
+                    .flatten()
+                    .all(|&a| a <= 1.0 + 1e-9)
+            );
+        }
+        assert!(planned >= 3);
+    }
 
     #[test]
     fn sums_get_enough_integer_bits() {

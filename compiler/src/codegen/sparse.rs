@@ -126,6 +126,11 @@ pub struct SparseCode<'a> {
     /// Fixed-point code: error units (of `2^-32`) of the shifted floor-form operations
     /// emitted since the last [`SparseCode::take_shift_units`].
     pub shift_units: Cell<usize>,
+    /// Fixed-point code: values and adjoints at ones, and the root's error units of
+    /// the last forward sweep, each rounding weighted by its sensitivity (see
+    /// [`super::fixed`]).
+    at_ones: Option<super::fixed::AtOnes>,
+    forward_units: Cell<f64>,
 }
 
 /// Multiply(-add) counts of one template's functions, per call (one call evaluates
@@ -150,6 +155,8 @@ impl<'a> SparseCode<'a> {
             plan,
             fixed: false,
             shift_units: Cell::new(0),
+            at_ones: None,
+            forward_units: Cell::new(0.0),
         }
     }
 
@@ -157,8 +164,15 @@ impl<'a> SparseCode<'a> {
     pub fn fixed(prefix: String, plan: &'a Plan) -> Self {
         SparseCode {
             fixed: true,
+            at_ones: Some(super::fixed::AtOnes::of(plan)),
             ..Self::float(prefix, plan)
         }
+    }
+
+    /// Fixed-point code: the root's error units of the last forward sweep (each
+    /// rounding weighted by the adjoint at ones of what it rounds, entries included).
+    pub fn forward_units(&self) -> f64 {
+        self.forward_units.get()
     }
 
     /// The error units of shifted operations emitted since the last call.
@@ -282,6 +296,9 @@ impl<'a> SparseCode<'a> {
     fn forward(&self, l: &Lit, max: bool, body: &mut TokenStream) -> usize {
         let mut ops = 0;
         let mut done = BTreeSet::new();
+        let n = self.plan.n;
+        let ones = self.at_ones.as_ref().filter(|_| !max);
+        let mut units = ones.map_or(0.0, |o| o.entry_units(n));
         let agg = if max { "mv" } else { "sv" };
         for (b, block) in self.plan.blocks.iter().enumerate() {
             let bb = format_ident!("b{b}");
@@ -302,6 +319,9 @@ impl<'a> SparseCode<'a> {
                     let fp = format_ident!("fp{b}_{s}");
                     let f = join(f, &quote!(*));
                     body.extend(quote!(let #fp = #f;));
+                    if let Some(o) = ones {
+                        units += self.floor_units(o, b, s, &seg_rows[s]);
+                    }
                 }
             }
             // Row `m` gathers its terms from every segment (`seg_rows[s][m]`).
@@ -309,6 +329,7 @@ impl<'a> SparseCode<'a> {
             for m in 0..block.sums.len() {
                 let mi = int(m);
                 let acc = quote!(#bb[#mi]);
+                let (ops_before, shifts_before) = (ops, self.shift_units.get());
                 for (s, seg) in block.segments.iter().enumerate() {
                     let row = &seg_rows[s][m];
                     if row.floor > 0.0 {
@@ -331,9 +352,47 @@ impl<'a> SparseCode<'a> {
                     }
                     ops += self.grouped_sum(l, seg, (b, s, m), row, &acc, max, body);
                 }
+                if let Some(o) = ones {
+                    // Each multiply and its constant round once in the row; the
+                    // row's value reaches the root with its adjoint.
+                    let row = 2 * (ops - ops_before) + self.shift_units.get() - shifts_before;
+                    units += o.row(n, b, m) * row as f64;
+                }
             }
         }
+        self.forward_units.set(units);
         ops
+    }
+
+    /// Fixed-point code: the root's error units of segment `s` of block `b`'s vector
+    /// sums (`len·2^k` each) and floor product (`2^K` per multiply), weighted by their
+    /// sensitivities `Σ_m A_m·f_m·Π(other sums)` at ones.
+    fn floor_units(&self, o: &super::fixed::AtOnes, b: usize, s: usize, rows: &[Row]) -> f64 {
+        let n = self.plan.n;
+        let seg = &self.plan.blocks[b].segments[s];
+        let reach: f64 = rows
+            .iter()
+            .enumerate()
+            .map(|(m, r)| o.row(n, b, m) * r.floor)
+            .sum();
+        let bits: u32 = seg.inputs.iter().map(|&g| self.sum_bits(g)).sum();
+        let product = (seg.inputs.len() - 1) as f64 * 2f64.powi(bits as i32) * reach;
+        let sums: f64 = seg
+            .inputs
+            .iter()
+            .enumerate()
+            .map(|(q, &g)| {
+                let others: f64 = seg
+                    .inputs
+                    .iter()
+                    .enumerate()
+                    .filter(|&(p, _)| p != q)
+                    .map(|(_, &h)| o.sum(h))
+                    .product();
+                self.len_of(g) as f64 * 2f64.powi(self.sum_bits(g) as i32) * reach * others
+            })
+            .sum();
+        product + sums
     }
 
     /// The name of the inner sum of group `gi` of row `m` of segment `s` of block `b`

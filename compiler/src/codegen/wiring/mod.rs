@@ -268,11 +268,15 @@ fn fixed_code(
     let fx = SparseCode::fixed(format!("{prefix}_fx"), plan);
     ops(float.fwd(&cx.l));
     ops(float.post(&cx.l));
-    let entries = plan.n * plan.classes;
+    // The value: its forward sweep's units, each rounding weighted by its sensitivity.
     let fwd = ops(fx.fwd(&cx.l));
-    let fwd_units = fixed::error_units(fwd, entries, fx.take_shift_units());
+    fx.take_shift_units();
+    let fwd_units = fx.forward_units().ceil() as u64;
+    // The posteriors: the forward sweep's units plus every backward rounding counted
+    // once (an adjoint's error reaches a posterior with a factor at most 1).
     let post = ops(fx.post(&cx.l));
-    let post_units = fixed::error_units(post, entries, fx.take_shift_units());
+    let backward = fixed::error_units(post - fwd, 0, fx.take_shift_units());
+    let post_units = fwd_units + backward;
     let (min_fwd, min_post) = fixed::thresholds(fwd_units, post_units);
     let id = |s: &str| format_ident!("{prefix}_{s}");
     let (w_fwd, fl_fwd, fx_fwd) = (id("fwd"), id("fl_fwd"), id("fx_fwd"));
