@@ -55,7 +55,7 @@ use proc_macro2::{Literal, TokenStream};
 use quote::quote;
 
 use super::emit::hex;
-use super::kernels::{Plan, Segment};
+use super::kernels::Plan;
 
 /// Relative error bits of a fixed-point template value: a value is kept when its
 /// error bound is at most `2^-REL_BITS` of it (see the module docs).
@@ -109,16 +109,6 @@ pub struct AtOnes {
     pub adjoint: Vec<Vec<f64>>,
 }
 
-/// The per-input indices of tuple `t` of `seg` (row-major, first input slowest).
-fn tuple_of(seg: &Segment, mut t: usize) -> Vec<usize> {
-    let mut idx = vec![0; seg.dims.len()];
-    for (q, &d) in seg.dims.iter().enumerate().rev() {
-        idx[q] = t % d;
-        t /= d;
-    }
-    idx
-}
-
 impl AtOnes {
     /// Evaluates `plan` at ones, forward and backward (one pass over its weights).
     pub fn of(plan: &Plan) -> AtOnes {
@@ -128,7 +118,7 @@ impl AtOnes {
             for seg in &block.segments {
                 for (m, w) in seg.weights.iter().enumerate() {
                     for (t, &wt) in w.iter().enumerate().filter(|(_, w)| **w > 0.0) {
-                        let idx = tuple_of(seg, t);
+                        let idx = seg.tuple(t);
                         let p: f64 = seg
                             .inputs
                             .iter()
@@ -148,7 +138,7 @@ impl AtOnes {
                 for (m, w) in seg.weights.iter().enumerate() {
                     let a = adjoint[plan.n + b][m];
                     for (t, &wt) in w.iter().enumerate().filter(|(_, w)| **w > 0.0 && a > 0.0) {
-                        let idx = tuple_of(seg, t);
+                        let idx = seg.tuple(t);
                         for q in 0..seg.inputs.len() {
                             let others: f64 = (0..seg.inputs.len())
                                 .filter(|&o| o != q)

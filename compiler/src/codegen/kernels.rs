@@ -44,6 +44,18 @@ pub struct Segment {
     pub weights: Vec<Vec<f64>>,
 }
 
+impl Segment {
+    /// The per-input indices of tuple `t` (row-major, first input slowest).
+    pub fn tuple(&self, mut t: usize) -> Vec<usize> {
+        let mut idx = vec![0; self.dims.len()];
+        for (q, &d) in self.dims.iter().enumerate().rev() {
+            idx[q] = t % d;
+            t /= d;
+        }
+        idx
+    }
+}
+
 /// `M` sums with a common child list.
 #[derive(Clone, Debug)]
 pub struct Block {

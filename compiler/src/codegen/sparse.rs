@@ -67,16 +67,6 @@ fn rows(seg: &Segment) -> Vec<Row> {
         .collect()
 }
 
-/// The per-input indices of tuple `t` (row-major, first input slowest).
-fn tuple(seg: &Segment, mut t: usize) -> Vec<usize> {
-    let mut idx = vec![0; seg.dims.len()];
-    for (q, &d) in seg.dims.iter().enumerate().rev() {
-        idx[q] = t % d;
-        t /= d;
-    }
-    idx
-}
-
 /// The above-floor terms of one row, grouped by the index they take at one input
 /// position `pos` (`(index, [(tuple, weight − floor, weight)])`): a group's terms share that
 /// factor, so the row adds `a[i]·(Σ d·(rest of the tuple))` once per group instead of
@@ -90,7 +80,7 @@ struct Groups {
 }
 
 fn group_terms(seg: &Segment, row: &Row) -> Groups {
-    let idx: Vec<Vec<usize>> = row.above.iter().map(|&(t, _, _)| tuple(seg, t)).collect();
+    let idx: Vec<Vec<usize>> = row.above.iter().map(|&(t, _, _)| seg.tuple(t)).collect();
     let group_at = |pos: usize| {
         let mut groups: Vec<(usize, Vec<Term>)> = Vec::new();
         for (&term, ix) in row.above.iter().zip(&idx) {
@@ -256,7 +246,7 @@ impl<'a> SparseCode<'a> {
     /// `a[i] * b[j] * c[k]` of tuple `t`, leaving out the input positions in `skip`;
     /// `None` when no factor is left. Also returns the number of factors.
     fn product(&self, seg: &Segment, t: usize, skip: &[usize]) -> (Option<TokenStream>, usize) {
-        let idx = tuple(seg, t);
+        let idx = seg.tuple(t);
         let f: Vec<TokenStream> = seg
             .inputs
             .iter()
@@ -537,7 +527,7 @@ impl<'a> SparseCode<'a> {
         // `target += h·(the factors of tuple t but those at q and `skip`)`, per
         // position q.
         let mut spread = |t: usize, h: &Ident, skip: Option<usize>, body: &mut TokenStream| {
-            let idx = tuple(seg, t);
+            let idx = seg.tuple(t);
             for (q, &g) in seg.inputs.iter().enumerate() {
                 if Some(q) == skip {
                     continue;
@@ -577,7 +567,7 @@ impl<'a> SparseCode<'a> {
                     let other = 1 - pos;
                     let (vector, j) = (
                         self.adjoint_name(seg.inputs[other]),
-                        int(tuple(seg, t)[other]),
+                        int(seg.tuple(t)[other]),
                     );
                     body.extend(
                         quote!(#vector[#j] = Lanes::mul_add(#h, V::splat(#d), #vector[#j]);),
@@ -748,7 +738,7 @@ impl<'a> SparseCode<'a> {
                         body.extend(quote!(#rt::sel(&mut r, &mut #ab[#mi], #f * #floor, #code);));
                     }
                     for &(tt, _, w) in &row.above {
-                        let idx = tuple(seg, tt);
+                        let idx = seg.tuple(tt);
                         let f = join(
                             seg.inputs.iter().zip(&idx).map(|(&g, &i)| self.elem(g, i)),
                             &quote!(*),
