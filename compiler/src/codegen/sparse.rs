@@ -67,6 +67,15 @@ fn rows(seg: &Segment) -> Vec<Row> {
         .collect()
 }
 
+/// The inputs of `seg` but the one at position `q`.
+fn other_inputs(seg: &Segment, q: usize) -> impl Iterator<Item = usize> + '_ {
+    seg.inputs
+        .iter()
+        .enumerate()
+        .filter(move |&(p, _)| p != q)
+        .map(|(_, &g)| g)
+}
+
 /// The above-floor terms of one row, grouped by the index they take at one input
 /// position `pos` (`(index, [(tuple, weight − floor, weight)])`): a group's terms share that
 /// factor, so the row adds `a[i]·(Σ d·(rest of the tuple))` once per group instead of
@@ -372,13 +381,7 @@ impl<'a> SparseCode<'a> {
             .iter()
             .enumerate()
             .map(|(q, &g)| {
-                let others: f64 = seg
-                    .inputs
-                    .iter()
-                    .enumerate()
-                    .filter(|&(p, _)| p != q)
-                    .map(|(_, &h)| o.sum(h))
-                    .product();
+                let others: f64 = other_inputs(seg, q).map(|h| o.sum(h)).product();
                 self.len_of(g) as f64 * 2f64.powi(self.sum_bits(g) as i32) * reach * others
             })
             .sum();
@@ -627,24 +630,14 @@ impl<'a> SparseCode<'a> {
                     let terms = join(terms, &quote!(+));
                     body.extend(quote!(let gf = #terms;));
                     for (q, &g) in seg.inputs.iter().enumerate() {
-                        let others: Vec<Ident> = seg
-                            .inputs
-                            .iter()
-                            .enumerate()
-                            .filter(|&(o, _)| o != q)
-                            .map(|(_, &o)| format_ident!("sv{o}"))
+                        let others: Vec<Ident> = other_inputs(seg, q)
+                            .map(|o| format_ident!("sv{o}"))
                             .collect();
                         let v = if others.is_empty() {
                             quote!(gf)
                         } else {
                             ops += others.len();
-                            let bits = seg
-                                .inputs
-                                .iter()
-                                .enumerate()
-                                .filter(|&(o, _)| o != q)
-                                .map(|(_, &o)| self.sum_bits(o))
-                                .sum();
+                            let bits = other_inputs(seg, q).map(|o| self.sum_bits(o)).sum();
                             let others = join(others, &quote!(*));
                             // Fixed point: the product holds the others' integer bits.
                             let prod = quote!(gf * #others);
