@@ -289,4 +289,77 @@ mod tests {
         assert_eq!(Fx::max_of(&[Fx(3), Fx(9), Fx(1)]), Fx(9));
         assert_eq!(Fx(3).times_pow2(2), Fx(12));
     }
+
+    #[test]
+    fn lane_operations_are_the_documented_ones() {
+        let (a, b, c) = (Fx(3_000_000_000), Fx(1 << 31), Fx(7));
+        assert_eq!(Fx::splat(a), a);
+        let mut s = c;
+        s += Fx(5);
+        assert_eq!(s, Fx(12));
+        assert_eq!(FxLanes::mul_add(a, b, c), Fx(1_500_000_000 + 7));
+        assert_eq!(FxLanes::max(c, a), a);
+        assert_eq!(FxLanes::max(a, c), a);
+        let rows = fx_rows(&[[1.0f32, 0.5, 0.0], [0.25, 2.0, 1e-12]]);
+        assert_eq!(
+            rows,
+            [
+                [Fx::ONE, Fx(1 << 31), Fx::ZERO],
+                [Fx(1 << 30), Fx::ONE, Fx::ZERO]
+            ]
+        );
+    }
+
+    /// A one-row "template" `T = Σ_c w_c x_c` with its adjoints `w_c`, in both
+    /// arithmetics, for the wrappers' tests.
+    const W: [f32; 2] = [0.25, 0.75];
+
+    fn fx_value(x: &[[Fx; 2]; 1]) -> Fx {
+        Fx(1 << 30) * x[0][0] + Fx(3 << 30) * x[0][1]
+    }
+
+    fn fl_value(x: &[[f32; 2]; 1]) -> f32 {
+        W[0] * x[0][0] + W[1] * x[0][1]
+    }
+
+    #[test]
+    fn value_wrapper_keeps_the_fixed_point_result_at_or_above_its_threshold() {
+        let x = [[1.0f32, 0.5]];
+        // T = 0.625 exactly in both arithmetics: 0.625 · 2^32 = 2,684,354,560.
+        let v = fx_value(&fx_rows(&x)).0;
+        assert_eq!(v, 2_684_354_559);
+        let marked = |_: &[[f32; 2]; 1]| -1.0f32;
+        assert_eq!(fx_fwd(&x, v, fx_value, marked), fx_to_f32(Fx(v)));
+        assert_eq!(fx_fwd(&x, v + 1, fx_value, marked), -1.0);
+        assert_eq!(fx_fwd(&x, v + 1, fx_value, fl_value), 0.625);
+    }
+
+    #[test]
+    fn posterior_wrapper_divides_by_the_value_or_falls_back() {
+        let x = [[1.0f32, 0.5]];
+        let fx = |q: &[[Fx; 2]; 1], g: &mut [[Fx; 2]; 1]| {
+            g[0] = [Fx(1 << 30), Fx(3 << 30)];
+            fx_value(q)
+        };
+        let fl = |x: &[[f32; 2]; 1], post: &mut [[f32; 2]; 1]| {
+            let v = fl_value(x);
+            post[0] = [W[0] * x[0][0] / v, W[1] * x[0][1] / v];
+            -v
+        };
+        let v = fx_value(&fx_rows(&x)).0;
+        let mut post = [[9.0f32; 2]];
+        let got = fx_post(&x, &mut post, v, fx, fl);
+        assert_eq!(got, fx_to_f32(Fx(v)));
+        // Local posteriors 0.4 and 0.6, from integers: within 2^-22 relative, below.
+        for (&p, want) in post[0].iter().zip([0.4f64, 0.6]) {
+            let p = f64::from(p);
+            assert!(
+                p <= want && want - p <= want * 2f64.powi(-21),
+                "{p} vs {want}"
+            );
+        }
+        let mut post = [[9.0f32; 2]];
+        assert_eq!(fx_post(&x, &mut post, v + 1, fx, fl), -0.625);
+        assert_eq!(post, [[0.4, 0.6]]);
+    }
 }
