@@ -208,13 +208,68 @@ fn scaled_row<T: Real, const C: usize>(row: &[T; C], label: u16) -> [T; C] {
     x
 }
 
+/// Writes every place's scaled row (largest entry 1), or the one-hot row of its label
+/// (`labels`, `< C`), into `s`: the same values a gather from the rows themselves
+/// computes, bit for bit. SIMD hosts pass this table to the passes (their `table`
+/// argument), whose gathers are then loads only.
+#[inline(never)]
+pub fn scale_rows<T: Real, const C: usize, const N: usize>(
+    e: &[[T; C]; N],
+    labels: Option<&[u16; N]>,
+    s: &mut [[T; C]; N],
+) {
+    for (q, (o, row)) in s.iter_mut().zip(e).enumerate() {
+        let lab = labels.and_then(|ls| ls.get(q)).copied().unwrap_or(u16::MAX);
+        *o = scaled_row(row, lab);
+    }
+}
+
 /// The scaled rows of one group's components, lane `l` holding component `p[l]`
-/// (`labels`: one-hot rows for labelled places; `None`: no place is labelled).
-///
-/// Each row's scale is computed once per lane and variable; every vector is then
-/// built from its `L` lane values in one step (no per-lane insertion).
-#[inline]
+/// (`labels`: one-hot rows for labelled places; zero rows for places out of range),
+/// read from `table` (the rows of [`scale_rows`]) on SIMD hosts when given, else
+/// scaled from `e` (scalar code never reads a table).
+#[inline(always)]
 pub fn gather<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    e: &[[W::Scalar; C]; N],
+    labels: Option<&[u16; N]>,
+    table: Option<&[[W::Scalar; C]; N]>,
+    p: &[[u16; NV]; L],
+) -> [[W; C]; NV] {
+    if W::WIDTH > 1
+        && let Some(s) = table
+    {
+        return gather_scaled::<W, L, NV, C, N>(s, p);
+    }
+    gather_raw::<W, L, NV, C, N>(e, labels, p)
+}
+
+/// [`gather`] from rows scaled by [`scale_rows`]: loads and an in-register transpose
+/// ([`Lanes::from_rows`]).
+#[inline(always)]
+fn gather_scaled<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    s: &[[W::Scalar; C]; N],
+    p: &[[u16; NV]; L],
+) -> [[W; C]; NV] {
+    let zero = [W::Scalar::ZERO; C];
+    let mut x = [[W::ZERO; C]; NV];
+    for (v, xv) in x.iter_mut().enumerate() {
+        let mut src = [&zero; L];
+        for (o, pl) in src.iter_mut().zip(p) {
+            if let Some(r) = pl.get(v).and_then(|&q| s.get(usize::from(q))) {
+                *o = r;
+            }
+        }
+        *xv = W::from_rows(&src);
+    }
+    x
+}
+
+/// [`gather`] from the rows as given: each row's scale is computed once per lane and
+/// variable; every vector is then built from its `L` lane values in one step (no
+/// per-lane insertion). Out of line: inlined into every pass it costs microcontrollers
+/// stack and instructions.
+#[inline(never)]
+fn gather_raw<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
     e: &[[W::Scalar; C]; N],
     labels: Option<&[u16; N]>,
     p: &[[u16; NV]; L],
@@ -261,16 +316,28 @@ pub fn gather<W: Lanes, const L: usize, const NV: usize, const C: usize, const N
     x
 }
 
-/// The scaled rows of one component (scalar), for MPE backtracking.
+/// The scaled rows of one component (scalar), for MPE backtracking: from `table`
+/// (the rows of [`scale_rows`], without labels) when given, else scaled from `e`.
 #[inline]
 fn gather_one<T: Real, const NV: usize, const C: usize, const N: usize>(
     e: &[[T; C]; N],
+    table: Option<&[[T; C]; N]>,
     p: &[u16; NV],
 ) -> [[T; C]; NV] {
     let mut x = [[T::ZERO; C]; NV];
     for (xv, &q) in x.iter_mut().zip(p) {
-        if let Some(row) = e.get(usize::from(q)) {
-            *xv = scaled_row(row, u16::MAX);
+        let q = usize::from(q);
+        match table {
+            Some(s) => {
+                if let Some(row) = s.get(q) {
+                    *xv = *row;
+                }
+            }
+            None => {
+                if let Some(row) = e.get(q) {
+                    *xv = scaled_row(row, u16::MAX);
+                }
+            }
         }
     }
     x
@@ -290,11 +357,12 @@ pub fn value_pass<
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
     labels: &[u16; N],
+    table: Option<&[[W::Scalar; C]; N]>,
     max: bool,
     acc: &mut [Acc<W::Scalar>; D],
 ) {
     for (g, p) in t.places.iter().enumerate() {
-        let x = gather::<W, L, NV, C, N>(e, Some(labels), p);
+        let x = gather::<W, L, NV, C, N>(e, Some(labels), table, p);
         let v = if max { (t.max)(&x) } else { (t.fwd)(&x) };
         let masks = t.decs.get(g * L..).unwrap_or(&[]);
         for (&mask, &vl) in masks.iter().zip(&v.to_lanes::<L>()) {
@@ -329,15 +397,16 @@ fn weight<T: Real, const D: usize>(w: &[T; D], mask: u64) -> T {
     s
 }
 
-/// Value and local posteriors of group `p` of a template on evidence `e` (no
-/// labels): `(values per lane, posterior vectors [variable][class])`.
+/// Value and local posteriors of group `p` of a template on evidence `e` (no labels;
+/// `table`: see [`gather`]): `(values per lane, posterior vectors [variable][class])`.
 #[inline(always)]
 fn post_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
     p: &[[u16; NV]; L],
 ) -> ([W::Scalar; L], [[W; C]; NV]) {
-    let x = gather::<W, L, NV, C, N>(e, None, p);
+    let x = gather::<W, L, NV, C, N>(e, None, table, p);
     let mut post = [[W::ZERO; C]; NV];
     let v = (t.post)(&x, &mut post);
     (v.to_lanes::<L>(), post)
@@ -367,11 +436,12 @@ pub fn posterior_pass<
 >(
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
     w: &[W::Scalar; D],
     out: &mut [[W::Scalar; C]; N],
 ) {
     for (g, p) in t.places.iter().enumerate() {
-        let (_, post) = post_group(t, e, p);
+        let (_, post) = post_group(t, e, table, p);
         let masks = t.decs.get(g * L..).unwrap_or(&[]);
         let mut wl = [W::Scalar::ZERO; L];
         for (o, &mask) in wl.iter_mut().zip(masks) {
@@ -396,16 +466,19 @@ pub fn posterior_pass<
 pub fn mpe_labels<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
     d: usize,
     labels: &mut [u16; N],
 ) {
+    // Scalar code reads no table (see `gather`).
+    let table = if W::WIDTH > 1 { table } else { None };
     for (g, p) in t.places.iter().enumerate() {
         for (l, pl) in p.iter().enumerate() {
             match t.decs.get(g * L + l) {
                 Some(&mask) if mask >> d & 1 == 1 => {}
                 _ => continue,
             }
-            let x = gather_one::<W::Scalar, NV, C, N>(e, pl);
+            let x = gather_one::<W::Scalar, NV, C, N>(e, table, pl);
             let mut lab = [0u16; NV];
             (t.mpe)(&x, &mut lab);
             for (&c, &q) in lab.iter().zip(pl) {
@@ -417,13 +490,15 @@ pub fn mpe_labels<W: Lanes, const L: usize, const NV: usize, const C: usize, con
     }
 }
 
-/// Streaming state: re-evaluates group `g` of a template on the state's evidence and
-/// stores each real component's value into `val` (indexed by component within the
-/// template) and its local posteriors into `post` (rows `u·NV ..`).
+/// Streaming state and one-pass marginals: re-evaluates group `g` of a template on
+/// evidence `e` (`table`: see [`gather`]) and stores each real component's value into `val` (indexed by
+/// component within the template) and its local posteriors into `post` (rows
+/// `u·NV ..`).
 #[inline(never)]
 pub fn eval_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
     g: usize,
     val: &mut [W::Scalar],
     post: &mut [[W::Scalar; C]],
@@ -431,7 +506,7 @@ pub fn eval_group<W: Lanes, const L: usize, const NV: usize, const C: usize, con
     let Some(p) = t.places.get(g) else {
         return;
     };
-    let (v, pw) = post_group(t, e, p);
+    let (v, pw) = post_group(t, e, table, p);
     let first = g * L;
     let real = t.decs.len().saturating_sub(first).min(L);
     for (l, &vl) in v.iter().enumerate().take(real) {

@@ -68,6 +68,20 @@ pub trait Lanes:
     fn from_lanes<const L: usize>(a: &[Self::Scalar; L]) -> Self;
     /// The first `L` lanes as an array (`0` past the vector's width).
     fn to_lanes<const L: usize>(self) -> [Self::Scalar; L];
+    /// Rows to lanes: `out[c]` holds `rows[l][c]` in lane `l` (a transpose; lanes past
+    /// `L` are `0`).
+    #[inline(always)]
+    fn from_rows<const L: usize, const C: usize>(rows: &[&[Self::Scalar; C]; L]) -> [Self; C] {
+        let mut out = [Self::ZERO; C];
+        for (c, o) in out.iter_mut().enumerate() {
+            let mut a = [Self::Scalar::ZERO; L];
+            for (x, r) in a.iter_mut().zip(rows) {
+                *x = r.get(c).copied().unwrap_or(Self::Scalar::ZERO);
+            }
+            *o = Self::from_lanes(&a);
+        }
+        out
+    }
     /// Sum of the lanes of every vector of `v`, lane by lane: `Σ_i v[i]`.
     #[inline(always)]
     fn sum<const K: usize>(v: &[Self; K]) -> Self {
@@ -89,8 +103,12 @@ pub trait Lanes:
 }
 
 macro_rules! lanes_impl {
-    ($v:ident, $t:ident) => {
+    ($v:ident, $t:ident, $from_rows:ident) => {
         impl Lanes for $v {
+            #[inline(always)]
+            fn from_rows<const L: usize, const C: usize>(rows: &[&[$t; C]; L]) -> [Self; C] {
+                $from_rows::<L, C>(rows)
+            }
             type Scalar = $t;
             const ZERO: Self = $v::ZERO;
             const WIDTH: usize = core::mem::size_of::<$v>() / core::mem::size_of::<$t>();
@@ -212,8 +230,57 @@ impl SwapLanes<f64, 4> for Lanes64 {
     }
 }
 
-lanes_impl!(Lanes32, f32);
-lanes_impl!(Lanes64, f64);
+lanes_impl!(Lanes32, f32, rows_to_lanes32);
+lanes_impl!(Lanes64, f64, rows_to_lanes64);
+
+/// [`Lanes::from_rows`] for 8 `f32` lanes: classes in blocks of 8, each block loaded as
+/// one vector per row and transposed in registers (`wide`'s AVX shuffles: no lane
+/// assembled through memory); the classes after the last block lane by lane.
+#[inline(always)]
+fn rows_to_lanes32<const L: usize, const C: usize>(rows: &[&[f32; C]; L]) -> [Lanes32; C] {
+    let mut out = [Lanes32::ZERO; C];
+    let mut done = 0;
+    if L == 8 {
+        while done + 8 <= C {
+            let mut block = [Lanes32::ZERO; 8];
+            for (b, r) in block.iter_mut().zip(rows) {
+                if let Some(v) = r
+                    .get(done..done + 8)
+                    .and_then(|s| <[f32; 8]>::try_from(s).ok())
+                {
+                    *b = Lanes32::new(v);
+                }
+            }
+            let t = Lanes32::transpose(block);
+            for (o, v) in out.iter_mut().skip(done).zip(t) {
+                *o = v;
+            }
+            done += 8;
+        }
+    }
+    for (c, o) in out.iter_mut().enumerate().skip(done) {
+        let mut a = [0.0f32; 8];
+        for (x, r) in a.iter_mut().zip(rows) {
+            *x = r.get(c).copied().unwrap_or(0.0);
+        }
+        *o = Lanes32::new(a);
+    }
+    out
+}
+
+/// [`Lanes::from_rows`] for 4 `f64` lanes, lane by lane.
+#[inline(always)]
+fn rows_to_lanes64<const L: usize, const C: usize>(rows: &[&[f64; C]; L]) -> [Lanes64; C] {
+    let mut out = [Lanes64::ZERO; C];
+    for (c, o) in out.iter_mut().enumerate() {
+        let mut a = [0.0f64; 4];
+        for (x, r) in a.iter_mut().zip(rows) {
+            *x = r.get(c).copied().unwrap_or(0.0);
+        }
+        *o = Lanes64::new(a);
+    }
+    out
+}
 
 /// One component per call: the scalar itself is the "vector" (targets without float
 /// SIMD, e.g. Cortex-M4F or RISC-V MCUs). Multiply-adds are not fused (no `fma` in

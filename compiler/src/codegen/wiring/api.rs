@@ -6,11 +6,41 @@ use quote::quote;
 
 use super::super::emit::{int, rt};
 use super::super::surface::{checked, checked_labelled};
-use super::{Context, Tpl, state};
+use super::{Context, Prescale, Tpl, state};
 
 /// One driver call per template, `call(table)` with the template's `static` table.
 fn per_template(tpls: &[Tpl], call: impl Fn(&Tpl) -> TokenStream) -> TokenStream {
     tpls.iter().map(call).collect()
+}
+
+/// Where an entry point keeps the evidence rows scaled once per call (SIMD hosts:
+/// gathers are then loads only; see the runtime's `scale_rows`).
+#[derive(Clone, Copy)]
+pub(super) enum Table {
+    /// No table: each gather scales its rows (no scratch; microcontrollers).
+    None,
+    /// A table on the stack (`n × c` scalars).
+    Stack,
+    /// The caller's `out` (marginals in one pass: written only after the last gather).
+    Out,
+}
+
+/// Binds `table`, the evidence rows scaled once per call that the passes read (`None`:
+/// each gather scales its rows), as `kind` says (`labels`: an `Option<&Labels>`).
+fn bind_table(kind: Table, labels: TokenStream) -> TokenStream {
+    let rt = rt();
+    match kind {
+        Table::None => quote!(let table: Option<&Evidence> = None;),
+        Table::Stack => quote! {
+            let mut scaled = [[0.0; NUM_CLASSES]; NUM_PLACES];
+            #rt::scale_rows(e, #labels, &mut scaled);
+            let table = Some(&scaled);
+        },
+        Table::Out => quote! {
+            #rt::scale_rows(e, #labels, out);
+            let table = Some(&*out);
+        },
+    }
 }
 
 /// `values` (every component's value, or max-product value, into the decomposition
@@ -19,11 +49,12 @@ pub(super) fn value_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let calls = per_template(tpls, |tp| {
         let stat = &tp.stat;
-        quote!(#rt::value_pass(&#stat, e, labels, max, &mut acc);)
+        quote!(#rt::value_pass(&#stat, e, labels, table, max, &mut acc);)
     });
     quote! {
-        /// The decomposition accumulators of a value pass (`max`: max-product values).
-        fn values(e: &Evidence, labels: &Labels, max: bool) -> [#rt::Acc<#t>; NUM_DECOMPOSITIONS] {
+        /// The decomposition accumulators of a value pass (`max`: max-product values;
+        /// `table`: the rows scaled once, see `scale_rows`).
+        fn values(e: &Evidence, labels: &Labels, table: Option<&Evidence>, max: bool) -> [#rt::Acc<#t>; NUM_DECOMPOSITIONS] {
             let mut acc = [#rt::Acc::ONE; NUM_DECOMPOSITIONS];
             #calls
             acc
@@ -44,16 +75,29 @@ pub(super) fn value_pass(tpls: &[Tpl], cx: &Context) -> TokenStream {
 /// its posteriors, keeping them on the stack until the decomposition weights are known
 /// (SIMD hosts); otherwise a value pass, then a posterior pass (microcontrollers: no
 /// scratch of the size of the map).
-pub(super) fn stateless_api(tpls: &[Tpl], cx: &Context, one_pass: bool) -> TokenStream {
-    let likelihood = likelihood_api(cx);
-    let marginals = posterior_pass(tpls, cx, one_pass);
-    let mpe = mpe(tpls, cx);
+///
+/// `prescale`: which entry points scale every evidence row once (see [`Table`]).
+pub(super) fn stateless_api(
+    tpls: &[Tpl],
+    cx: &Context,
+    one_pass: bool,
+    prescale: Prescale,
+) -> TokenStream {
+    let values = if prescale.values {
+        Table::Stack
+    } else {
+        Table::None
+    };
+    let likelihood = likelihood_api(cx, values);
+    let marginals = posterior_pass(tpls, cx, one_pass, prescale.marginals);
+    let mpe = mpe(tpls, cx, values);
     quote!(#likelihood #marginals #mpe)
 }
 
 /// `log_likelihood` and `labelled_log_likelihood` (value pass only).
-fn likelihood_api(cx: &Context) -> TokenStream {
+fn likelihood_api(cx: &Context, table: Table) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let table = bind_table(table, quote!(Some(labels)));
     let log_likelihood = checked(
         &cx.l,
         &[
@@ -77,7 +121,8 @@ fn likelihood_api(cx: &Context) -> TokenStream {
 
         /// Like [`labelled_log_likelihood`], without validating evidence or labels.
         pub fn labelled_log_likelihood_unchecked(labels: &Labels, e: &Evidence) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            let acc = values(e, labels, false);
+            #table
+            let acc = values(e, labels, table, false);
             finish(&acc, #rt::log_scale(e, labels)).map(|(l, _)| l)
         }
 
@@ -87,8 +132,14 @@ fn likelihood_api(cx: &Context) -> TokenStream {
 
 /// `marginals`: every component's weighted local posteriors, after a value pass (or,
 /// `one_pass`, from one evaluation of every component kept on the stack).
-fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool) -> TokenStream {
+fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool, prescale: bool) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let table = match (prescale, one_pass) {
+        (false, _) => Table::None,
+        (true, true) => Table::Out,
+        (true, false) => Table::Stack,
+    };
+    let table = bind_table(table, quote!(None));
     let passes = if one_pass {
         " One pass over the components (each evaluated once with its posteriors, kept on the"
     } else {
@@ -113,16 +164,17 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool) -> TokenStream {
         TokenStream::new(),
     );
     if one_pass {
-        return one_pass_marginals(tpls, cx, checked);
+        return one_pass_marginals(tpls, cx, checked, table);
     }
     let calls = per_template(tpls, |tp| {
         let stat = &tp.stat;
-        quote!(#rt::posterior_pass(&#stat, e, &w, out);)
+        quote!(#rt::posterior_pass(&#stat, e, table, &w, out);)
     });
     quote! {
         /// Like [`marginals`], without validating the evidence.
         pub fn marginals_unchecked(e: &Evidence, out: &mut Marginals) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            let acc = values(e, &ALL_UNKNOWN, false);
+            #table
+            let acc = values(e, &ALL_UNKNOWN, table, false);
             let (l, w) = finish(&acc, #rt::log_scale(e, &ALL_UNKNOWN))?;
             for row in out.iter_mut() {
                 *row = [0.0; NUM_CLASSES];
@@ -138,7 +190,12 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool) -> TokenStream {
 /// `marginals` in one pass: every lane group evaluated once with its posteriors
 /// (values and posteriors stored as in the [`State`]'s cache), the decompositions
 /// mixed from the values, then the weighted posteriors added up.
-fn one_pass_marginals(tpls: &[Tpl], cx: &Context, checked: TokenStream) -> TokenStream {
+fn one_pass_marginals(
+    tpls: &[Tpl],
+    cx: &Context,
+    checked: TokenStream,
+    table: TokenStream,
+) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let mut eval = TokenStream::new();
     for tp in tpls {
@@ -147,7 +204,7 @@ fn one_pass_marginals(tpls: &[Tpl], cx: &Context, checked: TokenStream) -> Token
         eval.extend(quote! {
             if let (Some(v), Some(p)) = (val.get_mut(#first_component..), post.get_mut(#first_row..)) {
                 for g in 0..#groups {
-                    #rt::eval_group(&#stat, e, g, v, p);
+                    #rt::eval_group(&#stat, e, table, g, v, p);
                 }
             }
         });
@@ -157,15 +214,17 @@ fn one_pass_marginals(tpls: &[Tpl], cx: &Context, checked: TokenStream) -> Token
     quote! {
         /// Like [`marginals`], without validating the evidence.
         pub fn marginals_unchecked(e: &Evidence, out: &mut Marginals) -> Result<#t, ::graphspn_runtime::EvidenceError> {
+            #table
             let mut val = [0.0; NUM_COMPONENTS];
             let mut post = [[0.0; NUM_CLASSES]; NUM_ROWS];
             #eval
-            let mut acc = [#rt::Acc::ONE; NUM_DECOMPOSITIONS];
-            #values
-            let (l, w) = finish(&acc, #rt::log_scale(e, &ALL_UNKNOWN))?;
+            // `out` may hold the scaled rows: cleared before any early return.
             for row in out.iter_mut() {
                 *row = [0.0; NUM_CLASSES];
             }
+            let mut acc = [#rt::Acc::ONE; NUM_DECOMPOSITIONS];
+            #values
+            let (l, w) = finish(&acc, #rt::log_scale(e, &ALL_UNKNOWN))?;
             #scatter
             Ok(l)
         }
@@ -176,8 +235,9 @@ fn one_pass_marginals(tpls: &[Tpl], cx: &Context, checked: TokenStream) -> Token
 
 /// `mpe`: the max-product value pass, then backtracking in the best decomposition's
 /// components.
-fn mpe(tpls: &[Tpl], cx: &Context) -> TokenStream {
+fn mpe(tpls: &[Tpl], cx: &Context, table: Table) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let table = bind_table(table, quote!(None));
     let checked = checked(
         &cx.l,
         &[
@@ -192,12 +252,13 @@ fn mpe(tpls: &[Tpl], cx: &Context) -> TokenStream {
     );
     let calls = per_template(tpls, |tp| {
         let stat = &tp.stat;
-        quote!(#rt::mpe_labels(&#stat, e, d, labels);)
+        quote!(#rt::mpe_labels(&#stat, e, table, d, labels);)
     });
     quote! {
         /// Like [`mpe`], without validating the evidence.
         pub fn mpe_unchecked(e: &Evidence, labels: &mut Labels) -> Result<#t, ::graphspn_runtime::EvidenceError> {
-            let acc = values(e, &ALL_UNKNOWN, true);
+            #table
+            let acc = values(e, &ALL_UNKNOWN, table, true);
             let (Some(d), scale) = (#rt::best(&acc), #rt::log_scale(e, &ALL_UNKNOWN)) else {
                 return Err(::graphspn_runtime::EvidenceError::ZeroLikelihood);
             };

@@ -407,7 +407,7 @@ pub fn module(
     let tpls = plan_templates(model, &uniques, &cx);
     let layout = Layout::new(&tpls, &uniques, &cx);
     let (tables, table_bytes) = tables(&tpls, &uniques, &layout, &cx);
-    let (report, one_pass) = report(&tpls, &layout, table_bytes, &cx, options)?;
+    let (report, passes) = report(&tpls, &layout, table_bytes, &cx, options)?;
     let lane_items = lane_items(&tpls, &cx);
     let constants = constants_and_types(&Surface {
         l: &cx.l,
@@ -426,7 +426,7 @@ pub fn module(
     let rows = int(layout.rows);
     let functions = tpls.iter().map(|tp| &tp.code);
     let value_pass = api::value_pass(&tpls, &cx);
-    let stateless = api::stateless_api(&tpls, &cx, one_pass);
+    let stateless = api::stateless_api(&tpls, &cx, passes.one_pass, passes.prescale);
     let state = state::state_api(&tpls, &cx);
     let compiled_map = compiled_map_impl(&cx.l);
     let tokens = quote! {
@@ -535,16 +535,34 @@ fn tables(tpls: &[Tpl], uniques: &[Unique], layout: &Layout, cx: &Context) -> (T
     (out, bytes)
 }
 
+/// How the stateless entry points run (see [`api::stateless_api`]).
+struct Passes {
+    /// `marginals` evaluates every component once, keeping values and posteriors on
+    /// the stack.
+    one_pass: bool,
+    /// Which entry points scale the evidence rows once into a stack table.
+    prescale: Prescale,
+}
+
+/// Which entry points scale every evidence row once per call (see [`api::bind_rows`]).
+#[derive(Clone, Copy)]
+pub(super) struct Prescale {
+    /// The value passes: (labelled) log-likelihood and MPE.
+    pub values: bool,
+    /// `marginals` (both passes).
+    pub marginals: bool,
+}
+
 /// Stack bounds, state and table bytes and multiply-adds of the generated code, and
-/// whether `marginals` takes one pass over the components (see
-/// [`api::stateless_api`]); fails when a stack bound exceeds the budget.
+/// how the stateless entry points run ([`Passes`]); fails when a stack bound exceeds
+/// the budget.
 fn report(
     tpls: &[Tpl],
     layout: &Layout,
     table_bytes: usize,
     cx: &Context,
     options: &CodegenOptions,
-) -> Result<(CodeReport, bool), CodegenError> {
+) -> Result<(CodeReport, Passes), CodegenError> {
     let (n, c, d_count, scalar) = (cx.n, cx.c, cx.d_count, cx.scalar);
     // Driver frame: the gathered inputs and the posteriors (`vars × classes` vectors
     // each), the gather's per-lane row sources (a reference, a scale and a tag: 24
@@ -579,8 +597,19 @@ fn report(
             .map(|tp| tp.vars * c * tp.lanes * scalar)
             .max()
             .unwrap_or(0);
+    // SIMD hosts scale every evidence row once per call, into `n × c` scalars on the
+    // stack where that fits the budget (first the one-pass marginals' scratch, then the
+    // table), or for one-pass marginals into the caller's output.
+    let budget = options.stack_budget();
+    let scaled = n * c * scalar;
     let scratch = (u_total + rows * c) * scalar;
-    let one_pass = cx.simd_lanes > 1 && two_pass_stack + scratch <= options.stack_budget();
+    let one_pass = cx.simd_lanes > 1 && two_pass_stack + scratch <= budget;
+    let marginals_stack = two_pass_stack + if one_pass { scratch } else { 0 };
+    let prescale = Prescale {
+        values: cx.simd_lanes > 1 && top + deepest + scaled <= budget,
+        marginals: cx.simd_lanes > 1 && (one_pass || marginals_stack + scaled <= budget),
+    };
+    let with_table = |yes: bool, stack: usize| stack + if yes { scaled } else { 0 };
     let macs_post = per_groups(&|tp| tp.counts.post) + rows * c;
     let macs_marg = if one_pass {
         macs_post
@@ -612,9 +641,9 @@ fn report(
     let report = CodeReport {
         lanes: cx.simd_lanes,
         components: u_total,
-        stack_log_likelihood: top + deepest,
-        stack_marginals: two_pass_stack + if one_pass { scratch } else { 0 },
-        stack_mpe: top + deepest,
+        stack_log_likelihood: with_table(prescale.values, top + deepest),
+        stack_marginals: with_table(prescale.marginals && !one_pass, marginals_stack),
+        stack_mpe: with_table(prescale.values, top + deepest),
         stack_state: top + deepest,
         state_bytes,
         table_bytes,
@@ -626,5 +655,5 @@ fn report(
             / n.max(1) as f64,
     };
     report.check_budget(options)?;
-    Ok((report, one_pass))
+    Ok((report, Passes { one_pass, prescale }))
 }

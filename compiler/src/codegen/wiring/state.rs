@@ -137,7 +137,7 @@ fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
             int(tp.groups()),
         );
         eval_fns.extend(quote! {
-            #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, g, v, p); } }
+            #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, None, g, v, p); } }
         });
         dispatch.extend(quote!(if unit < #end { self.#f(unit - #first_group); } else));
         refresh.extend(quote!(for g in 0..#groups { self.#f(g); }));
