@@ -208,6 +208,13 @@ fn scaled_row<T: Real, const C: usize>(row: &[T; C], label: u16) -> [T; C] {
     x
 }
 
+/// One place's scaled row (largest entry 1): what [`scale_rows`] writes for a place
+/// without a label (the streaming state's table on SIMD hosts).
+#[inline]
+pub fn scale_row<T: Real, const C: usize>(row: &[T; C]) -> [T; C] {
+    scaled_row(row, u16::MAX)
+}
+
 /// Writes every place's scaled row (largest entry 1), or the one-hot row of its label
 /// (`labels`, `< C`), into `s`: the same values a gather from the rows themselves
 /// computes, bit for bit. SIMD hosts pass this table to the passes (their `table`

@@ -577,7 +577,8 @@ fn report(
         .unwrap_or(0);
     let top = d_count * 32 + 1024;
     let (u_total, rows) = (layout.components, layout.rows);
-    let state_bytes = n * c * scalar
+    // The evidence rows (and on SIMD hosts the same rows scaled, see `state.rs`).
+    let state_bytes = n * c * scalar * if cx.simd_lanes > 1 { 2 } else { 1 }
         + n * scalar
         + n * fused_bytes(c, scalar)
         + u_total * scalar

@@ -9,11 +9,17 @@ use super::{Context, Tpl};
 
 /// The `State` type, its constructor and its methods.
 pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
-    let ty = state_type(cx);
-    let cache = cache_methods(tpls, cx);
-    let updates = update_methods(cx);
+    let table = cx.simd_lanes > 1;
+    let ty = state_type(cx, table);
+    let cache = cache_methods(tpls, cx, table);
+    let updates = update_methods(cx, table);
     let queries = query_methods(tpls, cx);
     let rt = rt();
+    let new_table = if table {
+        quote!(scaled: [[0.0; NUM_CLASSES]; NUM_PLACES],)
+    } else {
+        TokenStream::new()
+    };
     quote! {
         #ty
         impl State {
@@ -22,6 +28,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
             pub const fn new() -> State {
                 State {
                     ev: [[0.0; NUM_CLASSES]; NUM_PLACES],
+                    #new_table
                     lns: [0.0; NUM_PLACES],
                     fused: [#rt::Fused::ZERO; NUM_PLACES],
                     val: [0.0; NUM_COMPONENTS],
@@ -49,9 +56,19 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
     }
 }
 
-/// The `State` struct (with its documentation), `NO_EVIDENCE` and `Default`.
-fn state_type(cx: &Context) -> TokenStream {
+/// The `State` struct (with its documentation), `NO_EVIDENCE` and `Default`; `table`:
+/// the state also keeps every row scaled (SIMD hosts: lane groups are then gathered by
+/// loads and a transpose).
+fn state_type(cx: &Context, table: bool) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let table_field = if table {
+        quote! {
+            /// Every row of `ev` scaled to a largest entry of 1 (what the gathers read).
+            scaled: Evidence,
+        }
+    } else {
+        TokenStream::new()
+    };
     quote! {
         /// Streaming inference for a robot that gets evidence one place at a time: the
         /// caller-owned cache of every component's value and local posteriors (fixed size,
@@ -74,6 +91,7 @@ fn state_type(cx: &Context) -> TokenStream {
         #[derive(Clone)]
         pub struct State {
             ev: Evidence,
+            #table_field
             lns: [#t; NUM_PLACES],
             fused: [#rt::Fused<#t, NUM_CLASSES>; NUM_PLACES],
             val: [#t; NUM_COMPONENTS],
@@ -122,8 +140,21 @@ pub(super) fn cached_marginals(tpls: &[Tpl], post: &TokenStream, w: &TokenStream
 
 /// The cache's private methods: evaluating one lane group of a template, one unit
 /// (global group), re-mixing the decompositions, refreshing everything, storing a row.
-fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
+fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let (source, fresh_table, store_table) = if table {
+        (
+            quote!(Some(&self.scaled)),
+            quote!(self.scaled = NO_EVIDENCE;),
+            quote! {
+                if let Some(s) = self.scaled.get_mut(place) {
+                    *s = #rt::scale_row(&row);
+                }
+            },
+        )
+    } else {
+        (quote!(None), TokenStream::new(), TokenStream::new())
+    };
     let mut eval_fns = TokenStream::new();
     let mut dispatch = TokenStream::new();
     let values = cached_values(tpls, &quote!(self.val));
@@ -137,7 +168,7 @@ fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
             int(tp.groups()),
         );
         eval_fns.extend(quote! {
-            #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, None, g, v, p); } }
+            #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, #source, g, v, p); } }
         });
         dispatch.extend(quote!(if unit < #end { self.#f(unit - #first_group); } else));
         refresh.extend(quote!(for g in 0..#groups { self.#f(g); }));
@@ -174,6 +205,7 @@ fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
         fn fresh(&mut self) {
             if !self.ready {
                 self.ev = NO_EVIDENCE;
+                #fresh_table
                 self.lns = [0.0; NUM_PLACES];
                 self.fused = [#rt::Fused::ONES; NUM_PLACES];
                 self.refresh();
@@ -189,6 +221,7 @@ fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
                 *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
                 *f = fused;
             }
+            #store_table
             if let Some(units) = PLACE_UNITS.get(place) {
                 for &u in units {
                     self.eval_unit(u as usize);
@@ -199,9 +232,15 @@ fn cache_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
     }
 }
 
-/// The evidence updates: `set_evidence`, `observe`, `clear_evidence`, `set_all`.
-fn update_methods(cx: &Context) -> TokenStream {
+/// The evidence updates: `set_evidence`, `observe`, `clear_evidence`, `set_all`
+/// (`table`: the state keeps scaled rows, see [`state_type`]).
+fn update_methods(cx: &Context, table: bool) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let set_all_table = if table {
+        quote!(#rt::scale_rows(&self.ev, None, &mut self.scaled);)
+    } else {
+        TokenStream::new()
+    };
     let check = cx.l.helper("check");
     let err = quote!(::graphspn_runtime::EvidenceError);
     quote! {
@@ -250,6 +289,7 @@ fn update_methods(cx: &Context) -> TokenStream {
         pub fn set_all(&mut self, e: &Evidence) -> Result<(), #err> {
             #check(e, &PLACE_IDS)?;
             self.ev = *e;
+            #set_all_table
             for ((s, f), row) in self.lns.iter_mut().zip(self.fused.iter_mut()).zip(e) {
                 *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
                 *f = #rt::Fused::of(row);
