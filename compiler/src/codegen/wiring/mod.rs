@@ -544,7 +544,7 @@ struct Passes {
     prescale: Prescale,
 }
 
-/// Which entry points scale every evidence row once per call (see [`api::bind_rows`]).
+/// Which entry points scale every evidence row once per call (see [`api::Table`]).
 #[derive(Clone, Copy)]
 pub(super) struct Prescale {
     /// The value passes: (labelled) log-likelihood and MPE.
