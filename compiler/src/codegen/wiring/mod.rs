@@ -535,6 +535,21 @@ fn tables(tpls: &[Tpl], uniques: &[Unique], layout: &Layout, cx: &Context) -> (T
     (out, bytes)
 }
 
+/// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, see
+/// `state.rs`), their scales and fused form, every component's value and posteriors,
+/// the decomposition weights.
+fn state_bytes(layout: &Layout, cx: &Context) -> usize {
+    let (n, c, scalar) = (cx.n, cx.c, cx.scalar);
+    let row_tables = if cx.simd_lanes > 1 { 2 } else { 1 };
+    n * c * scalar * row_tables
+        + n * scalar
+        + n * fused_bytes(c, scalar)
+        + layout.components * scalar
+        + layout.rows * c * scalar
+        + cx.d_count * scalar
+        + 16
+}
+
 /// How the stateless entry points run (see [`api::stateless_api`]).
 struct Passes {
     /// `marginals` evaluates every component once, keeping values and posteriors on
@@ -577,14 +592,6 @@ fn report(
         .unwrap_or(0);
     let top = d_count * 32 + 1024;
     let (u_total, rows) = (layout.components, layout.rows);
-    // The evidence rows (and on SIMD hosts the same rows scaled, see `state.rs`).
-    let state_bytes = n * c * scalar * if cx.simd_lanes > 1 { 2 } else { 1 }
-        + n * scalar
-        + n * fused_bytes(c, scalar)
-        + u_total * scalar
-        + rows * c * scalar
-        + d_count * scalar
-        + 16;
     let per_groups =
         |f: &dyn Fn(&Tpl) -> usize| -> usize { tpls.iter().map(|tp| tp.groups() * f(tp)).sum() };
     let macs_ll = per_groups(&|tp| tp.counts.fwd);
@@ -646,7 +653,7 @@ fn report(
         stack_marginals: with_table(prescale.marginals && !one_pass, marginals_stack),
         stack_mpe: with_table(prescale.values, top + deepest),
         stack_state: top + deepest,
-        state_bytes,
+        state_bytes: state_bytes(layout, cx),
         table_bytes,
         macs_log_likelihood: macs_ll,
         macs_marginals: macs_marg,
