@@ -73,13 +73,7 @@ pub trait Lanes:
     #[inline(always)]
     fn from_rows<const L: usize, const C: usize>(rows: &[&[Self::Scalar; C]; L]) -> [Self; C] {
         let mut out = [Self::ZERO; C];
-        for (c, o) in out.iter_mut().enumerate() {
-            let mut a = [Self::Scalar::ZERO; L];
-            for (x, r) in a.iter_mut().zip(rows) {
-                *x = r.get(c).copied().unwrap_or(Self::Scalar::ZERO);
-            }
-            *o = Self::from_lanes(&a);
-        }
+        classes_from_rows(rows, &mut out, 0);
         out
     }
     /// Sum of the lanes of every vector of `v`, lane by lane: `Σ_i v[i]`.
@@ -102,13 +96,31 @@ pub trait Lanes:
     }
 }
 
+/// Classes `from..` of [`Lanes::from_rows`], lane by lane.
+#[inline(always)]
+fn classes_from_rows<V: Lanes, const L: usize, const C: usize>(
+    rows: &[&[V::Scalar; C]; L],
+    out: &mut [V; C],
+    from: usize,
+) {
+    for (c, o) in out.iter_mut().enumerate().skip(from) {
+        let mut a = [V::Scalar::ZERO; L];
+        for (x, r) in a.iter_mut().zip(rows) {
+            *x = r.get(c).copied().unwrap_or(V::Scalar::ZERO);
+        }
+        *o = V::from_lanes(&a);
+    }
+}
+
 macro_rules! lanes_impl {
-    ($v:ident, $t:ident, $from_rows:ident) => {
+    ($v:ident, $t:ident $(, $from_rows:ident)?) => {
         impl Lanes for $v {
+            $(
             #[inline(always)]
             fn from_rows<const L: usize, const C: usize>(rows: &[&[$t; C]; L]) -> [Self; C] {
                 $from_rows::<L, C>(rows)
             }
+            )?
             type Scalar = $t;
             const ZERO: Self = $v::ZERO;
             const WIDTH: usize = core::mem::size_of::<$v>() / core::mem::size_of::<$t>();
@@ -231,7 +243,7 @@ impl SwapLanes<f64, 4> for Lanes64 {
 }
 
 lanes_impl!(Lanes32, f32, rows_to_lanes32);
-lanes_impl!(Lanes64, f64, rows_to_lanes64);
+lanes_impl!(Lanes64, f64);
 
 /// [`Lanes::from_rows`] for 8 `f32` lanes: classes in blocks of 8, each block loaded as
 /// one vector per row and transposed in registers (`wide`'s AVX shuffles: no lane
@@ -258,27 +270,7 @@ fn rows_to_lanes32<const L: usize, const C: usize>(rows: &[&[f32; C]; L]) -> [La
             done += 8;
         }
     }
-    for (c, o) in out.iter_mut().enumerate().skip(done) {
-        let mut a = [0.0f32; 8];
-        for (x, r) in a.iter_mut().zip(rows) {
-            *x = r.get(c).copied().unwrap_or(0.0);
-        }
-        *o = Lanes32::new(a);
-    }
-    out
-}
-
-/// [`Lanes::from_rows`] for 4 `f64` lanes, lane by lane.
-#[inline(always)]
-fn rows_to_lanes64<const L: usize, const C: usize>(rows: &[&[f64; C]; L]) -> [Lanes64; C] {
-    let mut out = [Lanes64::ZERO; C];
-    for (c, o) in out.iter_mut().enumerate() {
-        let mut a = [0.0f64; 4];
-        for (x, r) in a.iter_mut().zip(rows) {
-            *x = r.get(c).copied().unwrap_or(0.0);
-        }
-        *o = Lanes64::new(a);
-    }
+    classes_from_rows(rows, &mut out, done);
     out
 }
 
