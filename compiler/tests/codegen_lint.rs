@@ -82,7 +82,8 @@ fn no_rust_code_assembled_as_strings() {
 #[test]
 fn emitters_use_quote() {
     for name in [
-        "sparse.rs",
+        "sparse/mod.rs",
+        "sparse/mpe.rs",
         "template.rs",
         "wiring/mod.rs",
         "wiring/api.rs",

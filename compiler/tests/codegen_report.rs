@@ -65,7 +65,7 @@ fn scalar_code_of_the_largest_cold_map_fits_a_small_stack() {
     assert!(r.macs_observe_marginals * 10 < r.macs_marginals, "{r:?}");
 }
 
-/// The block templates' terms are grouped by a shared factor (`codegen/sparse.rs`):
+/// The block templates' terms are grouped by a shared factor (`codegen/sparse`):
 /// on the 230-place map the scalar code's multiply(-add)s per call are 258,859 for the
 /// log-likelihood, 932,660 for the marginals and 331,663 for MPE, against 352,035,
 /// 1,468,780 and 424,839 with one product and one multiply-add per term.

@@ -3,7 +3,7 @@
 //!
 //! # What is emitted
 //!
-//! For every block template (`sparse.rs`, linear numerics) the generator emits, beside
+//! For every block template (`sparse/`, linear numerics) the generator emits, beside
 //! the `f32` functions (renamed `<t>_fl_fwd` / `<t>_fl_post`), their fixed-point twins
 //! `<t>_fx_fwd` / `<t>_fx_post` over `graphspn_runtime::__private::Fx` (an unsigned
 //! Q0.32 value `v / 2^32`), and the functions the driver calls, `<t>_fwd` / `<t>_post`,

@@ -16,7 +16,7 @@
 //!   of the cartesian product exactly once, with at most [`MAX_ARITY`] vectors;
 //! - the root is a sum; a variable's vector is its `C` leaves in class order.
 //!
-//! Blocks are then emitted in floor + sparse form by `sparse.rs`, for linear-space
+//! Blocks are then emitted in floor + sparse form by `sparse/`, for linear-space
 //! templates (see [`super::analysis`]): the same sums of products as the per-node
 //! code, in another order (rounding differs by a few ulp). Templates that do not
 //! match keep the per-node code of `template.rs`.

@@ -12,7 +12,7 @@
 //! `unsafe`: the log-likelihood, the marginals `P(Y_p = c | α)`, the max-product
 //! (MPE) labelling and the log-likelihood of a (partially) labelled map.
 //!
-//! Shape of the output (see `wiring.rs`, `sparse.rs` and `template.rs` for details):
+//! Shape of the output (see `wiring/`, `sparse/` and `template.rs` for details):
 //! - one set of straight-line functions per template SPN (value, value + local
 //!   posteriors, max-product value, MPE with backtracking), shared by every component
 //!   of that template, in *floor + sparse* form: each weighted sum is its smallest

@@ -240,7 +240,7 @@ impl TemplateCode<'_> {
             l.ty(),
             int(self.n()),
         );
-        quote!(#[inline(never)] fn #name(#x) -> #t { let mut lab = [0u16; #n]; #mpe(x, &mut lab) })
+        quote!(#[inline(never)] fn #name(#x) -> #t { let mut lab = [[0u16; #n]; 1]; #mpe(x, &mut lab) })
     }
 
     /// `fn <prefix>_post(x, post) -> value`: also writes the local posteriors
@@ -335,7 +335,8 @@ impl TemplateCode<'_> {
     }
 
     /// `fn <prefix>_mpe(x, lab) -> value`: max-product value (linear or log) and the
-    /// argmax labelling by backtracking (ties → lowest child index).
+    /// argmax labelling by backtracking (ties → lowest child index) into `lab[0]` (a
+    /// per-node template's group has one lane).
     pub fn mpe(&self, l: &Lit) -> TokenStream {
         let ops = ops(self.spn);
         let mut body = TokenStream::new();
@@ -379,6 +380,6 @@ impl TemplateCode<'_> {
             l.ty(),
             format_ident!("n{root}"),
         );
-        quote!(#[inline(never)] fn #name(#x, lab: &mut [u16; #n]) -> #t { #body #n_root })
+        quote!(#[inline(never)] fn #name(#x, lab: &mut [[u16; #n]; 1]) -> #t { let lab = &mut lab[0]; #body #n_root })
     }
 }

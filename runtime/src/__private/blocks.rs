@@ -1,6 +1,10 @@
 //! MPE backtracking for one component: turns the best tuple of every block sum
-//! (`arg[m] = [segment, i, j, k]`, decoded from the lane kernels' `*_maxa` codes by
-//! `decode_arg`) into the selected entries of each input, from the root down.
+//! (`[segment, i, j, k]`, see [`Args`]; in SIMD code unpacked from one lane of the
+//! packed codes by [`LaneArgs`]) into the selected entries of each input, from the
+//! root down.
+
+use super::Real;
+use super::lanes::Lanes;
 
 #[inline(always)]
 fn mark<const A: usize>(s: &mut [bool; A], i: u16) {
@@ -14,11 +18,12 @@ fn mark<const A: usize>(s: &mut [bool; A], i: u16) {
 pub fn d1_back<const M: usize, const A: usize>(
     seg: u16,
     sel: &[bool; M],
-    arg: &[[u16; 4]; M],
+    arg: &impl Args<M>,
     sa: &mut [bool; A],
 ) {
-    for (&s, am) in sel.iter().zip(arg) {
-        if s && am[0] == seg {
+    for (m, _) in sel.iter().enumerate().filter(|&(_, &s)| s) {
+        let am = arg.arg(m);
+        if am[0] == seg {
             mark(sa, am[1]);
         }
     }
@@ -29,12 +34,13 @@ pub fn d1_back<const M: usize, const A: usize>(
 pub fn d2_back<const M: usize, const A: usize, const B: usize>(
     seg: u16,
     sel: &[bool; M],
-    arg: &[[u16; 4]; M],
+    arg: &impl Args<M>,
     sa: &mut [bool; A],
     sb: &mut [bool; B],
 ) {
-    for (&s, am) in sel.iter().zip(arg) {
-        if s && am[0] == seg {
+    for (m, _) in sel.iter().enumerate().filter(|&(_, &s)| s) {
+        let am = arg.arg(m);
+        if am[0] == seg {
             mark(sa, am[1]);
             mark(sb, am[2]);
         }
@@ -46,13 +52,14 @@ pub fn d2_back<const M: usize, const A: usize, const B: usize>(
 pub fn d3_back<const M: usize, const A: usize, const B: usize, const K: usize>(
     seg: u16,
     sel: &[bool; M],
-    arg: &[[u16; 4]; M],
+    arg: &impl Args<M>,
     sa: &mut [bool; A],
     sb: &mut [bool; B],
     sc: &mut [bool; K],
 ) {
-    for (&s, am) in sel.iter().zip(arg) {
-        if s && am[0] == seg {
+    for (m, _) in sel.iter().enumerate().filter(|&(_, &s)| s) {
+        let am = arg.arg(m);
+        if am[0] == seg {
             mark(sa, am[1]);
             mark(sb, am[2]);
             mark(sc, am[3]);
@@ -66,4 +73,75 @@ pub fn sel_label<const C: usize>(sel: &[bool; C], lab: &mut u16) {
     if let Some(c) = sel.iter().position(|&s| s) {
         *lab = c as u16;
     }
+}
+
+/// Every lane's largest entry of `v` (at least 0) and its index as a lane value: the
+/// lowest index on ties, 0 when no entry is above 0. The lane form of
+/// [`super::amax`].
+#[inline(always)]
+pub fn amax_lanes<V: Lanes, const K: usize>(v: &[V; K]) -> (V, V) {
+    let (mut best, mut arg) = (V::ZERO, V::ZERO);
+    for (i, &x) in v.iter().enumerate() {
+        V::arg_max(&mut best, &mut arg, x, V::splat(V::Scalar::from_index(i)));
+    }
+    (best, arg)
+}
+
+/// The best tuples of a block's `M` sums.
+pub trait Args<const M: usize> {
+    /// Sum `m`'s best tuple `[segment, i, j, k]` (`[u16::MAX; 4]` past the end).
+    fn arg(&self, m: usize) -> [u16; 4];
+}
+
+impl<const M: usize> Args<M> for [[u16; 4]; M] {
+    #[inline(always)]
+    fn arg(&self, m: usize) -> [u16; 4] {
+        self.get(m).copied().unwrap_or([u16::MAX; 4])
+    }
+}
+
+/// Lane `lane` of a block's packed best tuples, unpacked on demand (only the selected
+/// sums' are). A code holds its fields from the lowest bits up as `k`, `j`, `i`,
+/// `segment`, field `f` taking `widths[f]` bits (`widths` in the order segment, i, j,
+/// k); the generator packs them only where every code is an integer the lane's float
+/// holds exactly.
+pub struct LaneArgs<'a, V, const M: usize> {
+    /// The packed codes, one lane vector per sum.
+    pub codes: &'a [V; M],
+    /// The lane.
+    pub lane: usize,
+    /// Bits of each field.
+    pub widths: [u32; 4],
+}
+
+impl<V: Lanes, const M: usize> Args<M> for LaneArgs<'_, V, M> {
+    #[inline(always)]
+    fn arg(&self, m: usize) -> [u16; 4] {
+        let Some(v) = self.codes.get(m) else {
+            return [u16::MAX; 4];
+        };
+        let mut code = v.lane(self.lane).index();
+        let mut out = [0u16; 4];
+        for (f, &w) in out.iter_mut().zip(&self.widths).rev() {
+            *f = (code & ((1usize << w) - 1)) as u16;
+            code >>= w;
+        }
+        out
+    }
+}
+
+/// Lane `l` of every row of `x`, for a template whose MPE codes do not fit a lane
+/// value (its scalar MPE function then runs once per lane).
+#[inline(always)]
+pub fn lane_rows<V: Lanes, const C: usize, const N: usize>(
+    x: &[[V; C]; N],
+    l: usize,
+) -> [[V::Scalar; C]; N] {
+    let mut out = [[V::Scalar::ZERO; C]; N];
+    for (o, r) in out.iter_mut().zip(x) {
+        for (oc, v) in o.iter_mut().zip(r) {
+            *oc = v.lane(l);
+        }
+    }
+    out
 }

@@ -19,8 +19,9 @@ use crate::EvidenceError;
 
 /// A template's value + local posteriors function (see [`Tpl::post`]).
 pub type PostFn<W, const NV: usize, const C: usize> = fn(&[[W; C]; NV], &mut [[W; C]; NV]) -> W;
-/// A template's scalar MPE function (see [`Tpl::mpe`]).
-pub type MpeFn<T, const NV: usize, const C: usize> = fn(&[[T; C]; NV], &mut [u16; NV]) -> T;
+/// A template's MPE function (see [`Tpl::mpe`]).
+pub type MpeFn<W, const L: usize, const NV: usize, const C: usize> =
+    fn(&[[W; C]; NV], &mut [[u16; NV]; L]) -> W;
 
 /// `a > b`; `false` when either is NaN.
 #[inline(always)]
@@ -46,8 +47,9 @@ pub struct Tpl<W: Lanes, const L: usize, const NV: usize, const C: usize> {
     pub post: PostFn<W, NV, C>,
     /// Max-product value of each lane's component.
     pub max: fn(&[[W; C]; NV]) -> W,
-    /// Max-product value of one component and its arg-max labelling.
-    pub mpe: MpeFn<W::Scalar, NV, C>,
+    /// Max-product value of each lane's component and its arg-max labelling (lane
+    /// `l`'s into `lab[l]`, one class per variable).
+    pub mpe: MpeFn<W, L, NV, C>,
 }
 
 /// A non-negative product kept as `m · 2^e · e^lg` (`m` in `[1, 2)` or `0`), see the
@@ -323,33 +325,6 @@ fn gather_raw<W: Lanes, const L: usize, const NV: usize, const C: usize, const N
     x
 }
 
-/// The scaled rows of one component (scalar), for MPE backtracking: from `table`
-/// (the rows of [`scale_rows`], without labels) when given, else scaled from `e`.
-#[inline]
-fn gather_one<T: Real, const NV: usize, const C: usize, const N: usize>(
-    e: &[[T; C]; N],
-    table: Option<&[[T; C]; N]>,
-    p: &[u16; NV],
-) -> [[T; C]; NV] {
-    let mut x = [[T::ZERO; C]; NV];
-    for (xv, &q) in x.iter_mut().zip(p) {
-        let q = usize::from(q);
-        match table {
-            Some(s) => {
-                if let Some(row) = s.get(q) {
-                    *xv = *row;
-                }
-            }
-            None => {
-                if let Some(row) = e.get(q) {
-                    *xv = scaled_row(row, u16::MAX);
-                }
-            }
-        }
-    }
-    x
-}
-
 /// Multiplies every component's value (`max`: its max-product value) into the
 /// accumulator of each decomposition containing it.
 #[inline(never)]
@@ -479,19 +454,49 @@ pub fn mpe_labels<W: Lanes, const L: usize, const NV: usize, const C: usize, con
 ) {
     // Scalar code reads no table (see `gather`).
     let table = if W::WIDTH > 1 { table } else { None };
+    // The decomposition's components, `L` at a time: lanes past `n` keep an earlier
+    // component's places (or place 0) and are not written back.
+    let mut batch = [[0u16; NV]; L];
+    let mut n = 0;
     for (g, p) in t.places.iter().enumerate() {
         for (l, pl) in p.iter().enumerate() {
             match t.decs.get(g * L + l) {
                 Some(&mask) if mask >> d & 1 == 1 => {}
                 _ => continue,
             }
-            let x = gather_one::<W::Scalar, NV, C, N>(e, table, pl);
-            let mut lab = [0u16; NV];
-            (t.mpe)(&x, &mut lab);
-            for (&c, &q) in lab.iter().zip(pl) {
-                if let Some(o) = labels.get_mut(usize::from(q)) {
-                    *o = c;
-                }
+            if let Some(b) = batch.get_mut(n) {
+                *b = *pl;
+            }
+            n += 1;
+            if n == L {
+                mpe_batch(t, e, table, &batch, n, labels);
+                n = 0;
+            }
+        }
+    }
+    if n > 0 {
+        mpe_batch(t, e, table, &batch, n, labels);
+    }
+}
+
+/// MPE labelling of the components of `batch` (one per lane): writes the classes of
+/// the first `n` lanes' places into `labels`.
+#[inline(always)]
+fn mpe_batch<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    batch: &[[u16; NV]; L],
+    n: usize,
+    labels: &mut [u16; N],
+) {
+    let x = gather::<W, L, NV, C, N>(e, None, table, batch);
+    let mut lab = [[0u16; NV]; L];
+    (t.mpe)(&x, &mut lab);
+    for (lab, pl) in lab.iter().zip(batch).take(n) {
+        for (&c, &q) in lab.iter().zip(pl) {
+            if let Some(o) = labels.get_mut(usize::from(q)) {
+                *o = c;
             }
         }
     }

@@ -167,7 +167,16 @@ macro_rules! lanes_impl {
             #[inline(always)]
             fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
                 let gt = p.simd_gt(*best);
-                *best = gt.select(p, *best);
+                // x86's `maxps p, best` is `p > best ? p : best` exactly (NaN and
+                // equal zeros give `best`): one instruction instead of a blend.
+                #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+                {
+                    *best = p.fast_max(*best);
+                }
+                #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+                {
+                    *best = gt.select(p, *best);
+                }
                 *arg = gt.select(code, *arg);
             }
             #[inline(always)]

@@ -9,7 +9,7 @@
 //! without float SIMD, 8 (`f32`) or 4 (`f64`) on the host; the last group padded with
 //! its first member), and per component the bit set of decompositions containing it.
 //! The generic driver `graphspn_runtime::__private::engine` runs over those tables and
-//! calls the template's straight-line functions (`sparse.rs`, or `template.rs` for
+//! calls the template's straight-line functions (`sparse/`, or `template.rs` for
 //! templates without block structure), so the per-map code is a few calls whatever
 //! the map's size: only the tables grow with the map.
 //!
@@ -220,7 +220,7 @@ fn plan_templates(model: &Model, uniques: &[Unique], cx: &Context) -> Vec<Tpl> {
     tpls
 }
 
-/// Floor + sparse block functions in lane groups (`sparse.rs`).
+/// Floor + sparse block functions in lane groups (`sparse/`).
 fn block_code(tpl: &mut Tpl, plan: &kernels::Plan, cx: &Context) {
     let code = SparseCode::float(tpl.prefix.clone(), plan);
     let mut ops = |(tokens, ops): (TokenStream, usize)| {
@@ -236,12 +236,12 @@ fn block_code(tpl: &mut Tpl, plan: &kernels::Plan, cx: &Context) {
         fwd,
         post,
         max: ops(code.max(&cx.l)),
-        mpe: ops(code.mpe(&cx.l)),
+        mpe: ops(code.mpe(&cx.l, cx.simd_lanes)),
     };
     let sums: usize = plan.blocks.iter().map(|b| b.sums.len()).sum();
     // Block values and adjoints, variable adjoints, MPE arguments and selections, and
     // room for spills of the straight-line temporaries (Cortex-M4F, 230-place map:
-    // the Star's MPE function has a 4.1 KB frame, its posterior function 2.2 KB); the
+    // the Star's posterior function has a 2.2 KB frame, a whole `mpe` call 1.6 KB); the
     // fixed-point wrappers' Q0.32 rows and adjoints.
     let wrapper = if cx.fixed { 2 * tpl.vars * cx.c * 4 } else { 0 };
     tpl.frame =
@@ -627,7 +627,13 @@ fn report(
     let macs_mpe = per_groups(&|tp| tp.counts.max)
         + tpls
             .iter()
-            .map(|tp| tp.members.len().div_ceil(d_count.max(1)) * tp.counts.mpe)
+            .map(|tp| {
+                tp.members
+                    .len()
+                    .div_ceil(d_count.max(1))
+                    .div_ceil(tp.lanes.max(1))
+                    * tp.counts.mpe
+            })
             .sum::<usize>();
     let worst_update = layout
         .place_units

@@ -28,17 +28,19 @@
 //!
 //! Every statement has constant indices (no bounds checks, no loops); the functions
 //! are generic in the lane vector `V` of the module (`f32`/`f64` on targets without
-//! float SIMD, one component per call; 8 or 4 SIMD lanes on the host). MPE
-//! backtracking is always scalar, one component at a time.
+//! float SIMD, one component per call; 8 or 4 SIMD lanes on the host). The MPE
+//! function (`mpe.rs`) runs its sweep on lanes too and backtracks each lane.
 
 use std::cell::Cell;
 use std::collections::BTreeSet;
 
 use proc_macro2::{Ident, Literal, TokenStream};
-use quote::{ToTokens, format_ident, quote};
+use quote::{format_ident, quote};
 
 use super::emit::{Lit, int, join, rt};
 use super::kernels::{Plan, Segment};
+
+mod mpe;
 
 /// An above-floor term of a row: `(tuple index, weight − floor, weight)`.
 type Term = (usize, f64, f64);
@@ -669,132 +671,5 @@ impl<'a> SparseCode<'a> {
             quote!(#[inline(never)] fn #name(#x, post: &mut [[#v; #c]; #n]) -> #v { #body #root }),
             ops,
         )
-    }
-
-    /// `fn <prefix>_mpe(x, lab) -> T`: the max-product value of one component and, by
-    /// backtracking the best tuple of every selected sum, its arg-max labelling; and
-    /// its multiply count.
-    pub fn mpe(&self, l: &Lit) -> (TokenStream, usize) {
-        let t = l.ty();
-        let p = self.plan;
-        let rt = rt();
-        let mut ops = 0;
-        let mut body = TokenStream::new();
-        let mut done = BTreeSet::new();
-        let (zero, minus_one) = (l.num(0.0), l.num(-1.0));
-        for (b, block) in p.blocks.iter().enumerate() {
-            let (bb, ab) = (format_ident!("b{b}"), format_ident!("a{b}"));
-            let m_len = int(block.sums.len());
-            body.extend(quote!(
-                let mut #bb = [#zero; #m_len];
-                let mut #ab = [[0u16; 4]; #m_len];
-            ));
-            let seg_rows: Vec<Vec<Row>> = block.segments.iter().map(rows).collect();
-            for (seg, sr) in block.segments.iter().zip(&seg_rows) {
-                if sr.iter().any(|r| r.floor > 0.0) {
-                    for &g in &seg.inputs {
-                        if done.insert(g) {
-                            let (mv, iv) = (format_ident!("mv{g}"), format_ident!("iv{g}"));
-                            let v = self.vec_name(g);
-                            body.extend(quote!(let (#mv, #iv) = #rt::amax(&#v);));
-                        }
-                    }
-                }
-            }
-            // Row `m` gathers its candidates from every segment (`seg_rows[s][m]`).
-            #[allow(clippy::needless_range_loop)]
-            for m in 0..block.sums.len() {
-                let mi = int(m);
-                body.extend(quote!(let mut r = #minus_one;));
-                for (s, seg) in block.segments.iter().enumerate() {
-                    let row = &seg_rows[s][m];
-                    // The code of a tuple: segment, then one index per input, 0-padded.
-                    let code = |idx: Vec<TokenStream>| -> TokenStream {
-                        let mut c = vec![int(s).into_token_stream()];
-                        c.extend(idx);
-                        c.resize(4, int(0).into_token_stream());
-                        let c = join(c, &quote!(,));
-                        quote!([#c])
-                    };
-                    if row.floor > 0.0 {
-                        let f = join(
-                            seg.inputs.iter().map(|g| format_ident!("mv{g}")),
-                            &quote!(*),
-                        );
-                        let ivs = seg
-                            .inputs
-                            .iter()
-                            .map(|g| format_ident!("iv{g}").into_token_stream())
-                            .collect();
-                        ops += seg.inputs.len();
-                        let (floor, code) = (l.num(row.floor), code(ivs));
-                        body.extend(quote!(#rt::sel(&mut r, &mut #ab[#mi], #f * #floor, #code);));
-                    }
-                    for &(tt, _, w) in &row.above {
-                        let idx = seg.tuple(tt);
-                        let f = join(
-                            seg.inputs.iter().zip(&idx).map(|(&g, &i)| self.elem(g, i)),
-                            &quote!(*),
-                        );
-                        ops += seg.inputs.len();
-                        let (w, code) = (
-                            l.num(w),
-                            code(idx.iter().map(|&i| int(i).into_token_stream()).collect()),
-                        );
-                        body.extend(quote!(#rt::sel(&mut r, &mut #ab[#mi], #f * #w, #code);));
-                    }
-                }
-                body.extend(quote!(#bb[#mi] = Lanes::max(r, #zero);));
-            }
-        }
-        self.backtrack(&mut body);
-        let c = int(p.classes);
-        let (name, n, root) = (self.ident("mpe"), int(p.n), self.root());
-        (
-            quote!(#[inline(never)] fn #name(x: &[[#t; #c]; #n], lab: &mut [u16; #n]) -> #t { #body #root }),
-            ops,
-        )
-    }
-
-    /// MPE backtracking: from the root, mark the selected tuple of every selected
-    /// sum, then write each variable's selected class into `lab`.
-    fn backtrack(&self, body: &mut TokenStream) {
-        let p = self.plan;
-        let rt = rt();
-        let c = int(p.classes);
-        for v in 0..p.n {
-            let sx = format_ident!("sx{v}");
-            body.extend(quote!(let mut #sx = [false; #c];));
-        }
-        for (b, block) in p.blocks.iter().enumerate() {
-            let sb = format_ident!("s{b}");
-            let len = int(block.sums.len());
-            body.extend(quote!(let mut #sb = [false; #len];));
-        }
-        let (s_root, m_root) = (format_ident!("s{}", p.root.0), int(p.root.1));
-        body.extend(quote!(#s_root[#m_root] = true;));
-        for (b, block) in p.blocks.iter().enumerate().rev() {
-            let (sb, ab) = (format_ident!("s{b}"), format_ident!("a{b}"));
-            for (s, seg) in block.segments.iter().enumerate() {
-                let sels = join(
-                    seg.inputs.iter().map(|&g| {
-                        let sel = if g < p.n {
-                            format_ident!("sx{g}")
-                        } else {
-                            format_ident!("s{}", g - p.n)
-                        };
-                        quote!(&mut #sel)
-                    }),
-                    &quote!(,),
-                );
-                let back = format_ident!("d{}_back", seg.dims.len());
-                let s = int(s);
-                body.extend(quote!(#rt::#back(#s, &#sb, &#ab, #sels);));
-            }
-        }
-        for v in 0..p.n {
-            let (sx, vi) = (format_ident!("sx{v}"), int(v));
-            body.extend(quote!(#rt::sel_label(&#sx, &mut lab[#vi]);));
-        }
     }
 }
