@@ -50,7 +50,8 @@ pub struct CodeReport {
     /// Worst-case multiply(-add)s of one state update (`observe`) plus `marginals`.
     pub macs_observe_marginals: usize,
     /// Mean number of evaluation units one state update re-evaluates, over the places
-    /// (GraphSPN: lane groups, or single components in scalar code; tree mixture:
+    /// (GraphSPN: lane groups assembled from the components containing the place, one
+    /// or more per template, single components in scalar code; tree mixture:
     /// places on the paths to the roots, summed over the trees).
     pub units_per_update: f64,
 }

@@ -518,18 +518,86 @@ pub fn eval_group<W: Lanes, const L: usize, const NV: usize, const C: usize, con
     let Some(p) = t.places.get(g) else {
         return;
     };
-    let (v, pw) = post_group(t, e, table, p);
     let first = g * L;
     let real = t.decs.len().saturating_sub(first).min(L);
-    for (l, &vl) in v.iter().enumerate().take(real) {
-        if let Some(o) = val.get_mut(first + l) {
+    let mut comps = [0usize; L];
+    for (l, k) in comps.iter_mut().enumerate() {
+        *k = first + l;
+    }
+    store_group(t, e, table, p, comps.get(..real).unwrap_or(&[]), val, post);
+}
+
+/// Streaming state: re-evaluates this template's components among `comps` (global
+/// component indices, this template's being `first .. first + t.decs.len()`; others
+/// and padding are skipped), `L` per call in lane groups assembled on the fly, and
+/// stores their values and local posteriors like [`eval_group`].
+#[inline(never)]
+pub fn eval_components<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    I: Copy + Into<u64>,
+>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    comps: &[I],
+    first: usize,
+    val: &mut [W::Scalar],
+    post: &mut [[W::Scalar; C]],
+) {
+    let mut batch = [[0u16; NV]; L];
+    let mut ks = [0usize; L];
+    let mut n = 0;
+    for &c in comps {
+        let k = usize::try_from(c.into())
+            .unwrap_or(usize::MAX)
+            .wrapping_sub(first);
+        let Some(pl) = t.places.get(k / L).and_then(|g| g.get(k % L)) else {
+            continue;
+        };
+        if k >= t.decs.len() {
+            continue;
+        }
+        if let (Some(b), Some(o)) = (batch.get_mut(n), ks.get_mut(n)) {
+            *b = *pl;
+            *o = k;
+        }
+        n += 1;
+        if n == L {
+            store_group(t, e, table, &batch, &ks, val, post);
+            n = 0;
+        }
+    }
+    if n > 0 {
+        store_group(t, e, table, &batch, ks.get(..n).unwrap_or(&[]), val, post);
+    }
+}
+
+/// Evaluates the lane group `p` and stores lane `l`'s value and local posteriors as
+/// those of component `comps[l]` (lanes past `comps.len()` are dropped).
+#[inline(always)]
+fn store_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    p: &[[u16; NV]; L],
+    comps: &[usize],
+    val: &mut [W::Scalar],
+    post: &mut [[W::Scalar; C]],
+) {
+    let (v, pw) = post_group(t, e, table, p);
+    for (&vl, &k) in v.iter().zip(comps) {
+        if let Some(o) = val.get_mut(k) {
             *o = vl;
         }
     }
     for (i, pv) in pw.iter().enumerate() {
         let pv = class_lanes::<W, L, C>(pv);
-        for l in 0..real {
-            if let Some(o) = post.get_mut((first + l) * NV + i) {
+        for (l, &k) in comps.iter().enumerate() {
+            if let Some(o) = post.get_mut(k * NV + i) {
                 for (oc, pc) in o.iter_mut().zip(&pv) {
                     *oc = pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
                 }
@@ -546,8 +614,31 @@ pub fn state_values<W: Lanes, const L: usize, const NV: usize, const C: usize, c
     val: &[W::Scalar],
     acc: &mut [Acc<W::Scalar>; D],
 ) {
-    for (&mask, &v) in t.decs.iter().zip(val) {
-        accumulate(acc, mask, v, t.log);
+    if t.log || W::WIDTH == 1 {
+        for (&mask, &v) in t.decs.iter().zip(val) {
+            accumulate(acc, mask, v, t.log);
+        }
+        return;
+    }
+    // SIMD hosts: each value's mantissa in `[1, 2)` multiplies the accumulator's
+    // mantissa and its exponent is added, renormalising after every 64 values instead
+    // of after each (the mantissa stays below 2^65): the same roundings as `Acc::mul`,
+    // since scaling by a power of two is exact, without a split on the dependency
+    // chain of each product (host streaming step -4%). Scalar code keeps `Acc::mul`:
+    // on Cortex-M4F this form cost 12% more instructions per `observe`.
+    for (masks, vals) in t.decs.chunks(64).zip(val.chunks(64)) {
+        for (&mask, &v) in masks.iter().zip(vals) {
+            let (m, e) = v.split();
+            for (d, a) in acc.iter_mut().enumerate() {
+                if mask >> d & 1 == 1 {
+                    a.m *= m;
+                    a.e = a.e.saturating_add(e);
+                }
+            }
+        }
+        for a in acc.iter_mut() {
+            a.mul(W::Scalar::ONE);
+        }
     }
 }
 
@@ -637,8 +728,23 @@ pub fn check_row<T: Real, const C: usize>(
     }
 }
 
+/// Every place's marginal from the streaming state: `out[q] = Σ_d w_d ·
+/// post[slots[q][d]]` (see [`mix_rows`]).
+#[inline(never)]
+pub fn mix_places<T: Real, const C: usize, const D: usize, const N: usize>(
+    post: &[[T; C]],
+    slots: &[[u32; D]; N],
+    w: &[T; D],
+    out: &mut [[T; C]; N],
+) {
+    for (o, s) in out.iter_mut().zip(slots) {
+        mix_rows(post, s, w, o);
+    }
+}
+
 /// `Σ_i w_i · rows[i]` over the given rows (out-of-range rows are skipped): one place's
 /// marginal from the streaming state.
+#[inline]
 pub fn mix_rows<T: Real, const C: usize, const D: usize>(
     post: &[[T; C]],
     slots: &[u32; D],

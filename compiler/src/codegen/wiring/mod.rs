@@ -155,8 +155,6 @@ struct Tpl {
     first_component: usize,
     /// Index of its first posterior row.
     first_row: usize,
-    /// Index of its first lane group among all groups.
-    first_group: usize,
 }
 
 impl Tpl {
@@ -173,10 +171,10 @@ impl Tpl {
 /// Decides how each template with components in the map is evaluated (floor +
 /// sparse block code in lane groups when its SPN has block structure and linear
 /// numerics, per-node scalar code otherwise), emits its functions, and numbers its
-/// components, rows and groups.
+/// components and rows.
 fn plan_templates(model: &Model, uniques: &[Unique], cx: &Context) -> Vec<Tpl> {
     let mut tpls: Vec<Tpl> = Vec::new();
-    let (mut components, mut rows, mut groups) = (0, 0, 0);
+    let (mut components, mut rows) = (0, 0);
     for (k, spn) in model.spns.iter().enumerate() {
         let mut members: Vec<usize> = (0..uniques.len())
             .filter(|&u| uniques[u].template == k)
@@ -206,7 +204,6 @@ fn plan_templates(model: &Model, uniques: &[Unique], cx: &Context) -> Vec<Tpl> {
             code: TokenStream::new(),
             first_component: components,
             first_row: rows,
-            first_group: groups,
         };
         match (&plan, num) {
             (Some(plan), Numerics::Linear { .. }) => block_code(&mut tpl, plan, cx),
@@ -214,7 +211,6 @@ fn plan_templates(model: &Model, uniques: &[Unique], cx: &Context) -> Vec<Tpl> {
         }
         components += tpl.members.len();
         rows += tpl.members.len() * tpl.vars;
-        groups += tpl.groups();
         tpls.push(tpl);
     }
     tpls
@@ -342,20 +338,18 @@ struct Layout {
     components: usize,
     /// Posterior rows (one per component and variable).
     rows: usize,
-    /// Lane groups of all templates.
-    groups: usize,
-    /// Per place: the global groups containing it.
-    place_units: Vec<Vec<usize>>,
+    /// Per place: the components containing it (global indices, ascending, so each
+    /// template's are adjacent).
+    place_components: Vec<Vec<usize>>,
     /// Per place and decomposition: the place's posterior row.
     place_slots: Vec<Vec<u32>>,
 }
 
 impl Layout {
     fn new(tpls: &[Tpl], uniques: &[Unique], cx: &Context) -> Layout {
-        let mut place_units: Vec<Vec<usize>> = vec![Vec::new(); cx.n];
+        let mut place_components: Vec<Vec<usize>> = vec![Vec::new(); cx.n];
         let mut place_slots: Vec<Vec<u32>> = vec![vec![u32::MAX; cx.d_count]; cx.n];
-        // Each component's template and position in it; the places' lists of groups
-        // follow the order of first appearance of the components.
+        // Each component's template and position in it.
         let mut position = vec![None; uniques.len()];
         for tp in tpls {
             for (i, &u) in tp.members.iter().enumerate() {
@@ -364,34 +358,48 @@ impl Layout {
         }
         for (un, pos) in uniques.iter().zip(position) {
             let Some((tp, i)) = pos else { continue };
-            let unit = tp.first_group + i / tp.lanes;
             for (v, &p) in un.places.iter().enumerate() {
-                if !place_units[p].contains(&unit) {
-                    place_units[p].push(unit);
-                }
+                place_components[p].push(tp.first_component + i);
                 let row = (tp.first_row + i * tp.vars + v) as u32;
                 for &d in &un.decs {
                     place_slots[p][d] = row;
                 }
             }
         }
+        for comps in &mut place_components {
+            comps.sort_unstable();
+        }
         Layout {
             components: tpls.iter().map(|tp| tp.members.len()).sum(),
             rows: tpls.iter().map(|tp| tp.members.len() * tp.vars).sum(),
-            groups: tpls.iter().map(Tpl::groups).sum(),
-            place_units,
+            place_components,
             place_slots,
         }
     }
 
-    /// Longest list of groups of one place (the width of `PLACE_UNITS`).
-    fn max_units(&self) -> usize {
-        self.place_units
+    /// Longest list of components of one place (the width of `PLACE_COMPONENTS`).
+    fn max_components(&self) -> usize {
+        self.place_components
             .iter()
             .map(Vec::len)
             .max()
             .unwrap_or(0)
             .max(1)
+    }
+
+    /// Per place, the lane groups an update evaluates: per template, its components
+    /// containing the place, `lanes` at a time (`(template, calls)`).
+    fn update_batches<'t>(&self, tpls: &'t [Tpl], place: usize) -> Vec<(&'t Tpl, usize)> {
+        tpls.iter()
+            .filter_map(|tp| {
+                let range = tp.first_component..tp.first_component + tp.members.len();
+                let k = self.place_components[place]
+                    .iter()
+                    .filter(|c| range.contains(c))
+                    .count();
+                (k > 0).then(|| (tp, k.div_ceil(tp.lanes.max(1))))
+            })
+            .collect()
     }
 }
 
@@ -507,15 +515,11 @@ fn tables(tpls: &[Tpl], uniques: &[Unique], layout: &Layout, cx: &Context) -> (T
             static #name: #rt::Tpl<#w, #lanes, #v, #c> = #rt::Tpl { places: &#places, decs: &#decs, log: #log, fwd: #fwd, post: #post, max: #max, mpe: #mpe };
         });
     }
-    let max_units = layout.max_units();
-    let unit_t = if layout.groups < usize::from(u16::MAX) {
-        format_ident!("u16")
-    } else {
-        format_ident!("u32")
-    };
-    let units = array(layout.place_units.iter().map(|us| {
-        let mut v: Vec<TokenStream> = us.iter().map(|&u| int(u).into_token_stream()).collect();
-        v.resize(max_units, quote!(#unit_t::MAX));
+    let max_comps = layout.max_components();
+    let (comp_t, comp_bytes) = component_int(layout.components);
+    let comps = array(layout.place_components.iter().map(|cs| {
+        let mut v: Vec<TokenStream> = cs.iter().map(|&u| int(u).into_token_stream()).collect();
+        v.resize(max_comps, quote!(#comp_t::MAX));
         array(v)
     }));
     let slots = array(
@@ -524,15 +528,25 @@ fn tables(tpls: &[Tpl], uniques: &[Unique], layout: &Layout, cx: &Context) -> (T
             .iter()
             .map(|ss| array(ss.iter().map(|&s| proc_macro2::Literal::u32_unsuffixed(s)))),
     );
-    bytes += cx.n * max_units * 2 + cx.n * cx.d_count * 4;
-    let max_units = int(max_units);
+    bytes += cx.n * max_comps * comp_bytes + cx.n * cx.d_count * 4;
+    let max_comps = int(max_comps);
     out.extend(quote! {
-        /// Per place: the groups of components containing it (`u16::MAX`: none).
-        static PLACE_UNITS: [[#unit_t; #max_units]; NUM_PLACES] = #units;
+        /// Per place: the components containing it, ascending (`MAX`: none).
+        static PLACE_COMPONENTS: [[#comp_t; #max_comps]; NUM_PLACES] = #comps;
         /// Per place and decomposition: the place's row in the state's posteriors.
         static PLACE_SLOTS: [[u32; NUM_DECOMPOSITIONS]; NUM_PLACES] = #slots;
     });
     (out, bytes)
+}
+
+/// The integer type of global component indices in `PLACE_COMPONENTS` (`MAX` is
+/// padding) and its size in bytes.
+fn component_int(components: usize) -> (Ident, usize) {
+    if components < usize::from(u16::MAX) {
+        (format_ident!("u16"), 2)
+    } else {
+        (format_ident!("u32"), 4)
+    }
 }
 
 /// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, see
@@ -635,23 +649,12 @@ fn report(
                     * tp.counts.mpe
             })
             .sum::<usize>();
-    let worst_update = layout
-        .place_units
-        .iter()
-        .map(|units| {
-            units
-                .iter()
-                .map(|&unit| {
-                    let ti = tpls
-                        .iter()
-                        .rposition(|tp| tp.first_group <= unit)
-                        .unwrap_or(0);
-                    tpls[ti].counts.post
-                })
-                .sum::<usize>()
-        })
-        .max()
-        .unwrap_or(0);
+    let update_cost = |place: usize| -> (usize, usize) {
+        let batches = layout.update_batches(tpls, place);
+        let macs = batches.iter().map(|(tp, k)| k * tp.counts.post).sum();
+        (macs, batches.iter().map(|(_, k)| k).sum())
+    };
+    let worst_update = (0..n).map(|p| update_cost(p).0).max().unwrap_or(0);
     let report = CodeReport {
         lanes: cx.simd_lanes,
         components: u_total,
@@ -665,8 +668,7 @@ fn report(
         macs_marginals: macs_marg,
         macs_mpe,
         macs_observe_marginals: worst_update + u_total * 2 + rows * c,
-        units_per_update: layout.place_units.iter().map(Vec::len).sum::<usize>() as f64
-            / n.max(1) as f64,
+        units_per_update: (0..n).map(|p| update_cost(p).1).sum::<usize>() as f64 / n.max(1) as f64,
     };
     report.check_budget(options)?;
     Ok((report, Passes { one_pass, prescale }))

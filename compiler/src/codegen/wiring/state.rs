@@ -2,10 +2,10 @@
 //! component's value and local posteriors, updated one place at a time.
 
 use proc_macro2::TokenStream;
-use quote::quote;
+use quote::{format_ident, quote};
 
 use super::super::emit::{int, rt};
-use super::{Context, Tpl};
+use super::{Context, Tpl, component_int};
 
 /// The `State` type, its constructor and its methods.
 pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
@@ -83,7 +83,7 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
         /// underflows, none is locked out however many observations arrive, and
         /// `log_likelihood` is that of the product of every observation. Costs: an update, about
         /// [`MACS_OBSERVE_MARGINALS`] multiply-adds with `marginals`; `log_likelihood` and
-        /// `marginal` O(1) and O(D·C); `marginals` O(components·places·C); `mpe` and
+        /// `marginal` O(1) and O(D·C); `marginals` O(places·D·C); `mpe` and
         /// `labelled_log_likelihood` a full stateless pass on the state's evidence. The first
         /// call after [`State::new`] evaluates every component once. [`State::new`] is all
         /// zeros, so a `static` state is placed in `.bss` (no initial image in flash).
@@ -155,29 +155,29 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
     } else {
         (quote!(None), TokenStream::new(), TokenStream::new())
     };
+    let (comp_t, _) = component_int(tpls.iter().map(|tp| tp.members.len()).sum());
     let mut eval_fns = TokenStream::new();
-    let mut dispatch = TokenStream::new();
+    let mut update = TokenStream::new();
     let values = cached_values(tpls, &quote!(self.val));
     let mut refresh = TokenStream::new();
     for (ti, tp) in tpls.iter().enumerate() {
         let (f, stat) = (tp.eval_group(ti), &tp.stat);
         let (first_component, first_row) = (int(tp.first_component), int(tp.first_row));
-        let (first_group, end, groups) = (
-            int(tp.first_group),
-            int(tp.first_group + tp.groups()),
-            int(tp.groups()),
-        );
+        let groups = int(tp.groups());
+        let fc = format_ident!("{f}_components");
         eval_fns.extend(quote! {
             #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, #source, g, v, p); } }
+            #[inline(never)] fn #fc(&mut self, comps: &[#comp_t]) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_components(&#stat, &self.ev, #source, comps, #first_component, v, p); } }
         });
-        dispatch.extend(quote!(if unit < #end { self.#f(unit - #first_group); } else));
+        update.extend(quote!(self.#fc(comps);));
         refresh.extend(quote!(for g in 0..#groups { self.#f(g); }));
     }
     quote! {
         #eval_fns
 
-        fn eval_unit(&mut self, unit: usize) {
-            #dispatch {}
+        /// Re-evaluates the components `comps` (global indices, see `PLACE_COMPONENTS`).
+        fn eval_components(&mut self, comps: &[#comp_t]) {
+            #update
         }
 
         /// Re-mixes the decompositions from the cached component values.
@@ -222,10 +222,8 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
                 *f = fused;
             }
             #store_table
-            if let Some(units) = PLACE_UNITS.get(place) {
-                for &u in units {
-                    self.eval_unit(u as usize);
-                }
+            if let Some(comps) = PLACE_COMPONENTS.get(place) {
+                self.eval_components(comps);
             }
             self.remix();
         }
@@ -304,8 +302,23 @@ fn update_methods(cx: &Context, table: bool) -> TokenStream {
 /// by a stateless pass on the state's evidence (`mpe`, `labelled_log_likelihood`).
 fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    // Each place mixes its D posterior rows: rows of contiguous multiply-adds (SIMD
+    // hosts: 0.6 µs less per step at 230 places; Cortex-M4F: 4% fewer instructions).
+    // Without an FPU (the fixed-point kernel's targets) each cached component's rows
+    // are added once instead, weighted by all its decompositions: a component shared
+    // by several decompositions costs one row, 6-7% fewer soft-float operations.
+    let mix = if !cx.fixed {
+        quote!(#rt::mix_places(&self.post, &PLACE_SLOTS, &self.w, out);)
+    } else {
+        let calls = cached_marginals(tpls, &quote!(self.post), &quote!(self.w));
+        quote! {
+            for row in out.iter_mut() {
+                *row = [0.0; NUM_CLASSES];
+            }
+            #calls
+        }
+    };
     let err = quote!(::graphspn_runtime::EvidenceError);
-    let marginal_calls = cached_marginals(tpls, &quote!(self.post), &quote!(self.w));
     quote! {
         /// Natural log of the likelihood of the current evidence (from the cache): of the
         /// product of every observation where rows were fused by `observe`.
@@ -323,10 +336,7 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
         /// log-likelihood.
         pub fn marginals(&mut self, out: &mut Marginals) -> Result<#t, #err> {
             let l = self.log_likelihood()?;
-            for row in out.iter_mut() {
-                *row = [0.0; NUM_CLASSES];
-            }
-            #marginal_calls
+            #mix
             Ok(l)
         }
 
