@@ -614,30 +614,104 @@ pub fn state_values<W: Lanes, const L: usize, const NV: usize, const C: usize, c
     val: &[W::Scalar],
     acc: &mut [Acc<W::Scalar>; D],
 ) {
-    if t.log || W::WIDTH == 1 {
-        for (&mask, &v) in t.decs.iter().zip(val) {
-            accumulate(acc, mask, v, t.log);
-        }
-        return;
+    state_values_of(t.decs, val, t.log, acc);
+}
+
+/// [`state_values`] of the components with decomposition masks `masks` and values
+/// `vals` (`log`: log-space values).
+#[inline(always)]
+fn state_values_of<T: Real, const D: usize>(
+    masks: &[u64],
+    vals: &[T],
+    log: bool,
+    acc: &mut [Acc<T>; D],
+) {
+    for (&mask, &v) in masks.iter().zip(vals) {
+        accumulate(acc, mask, v, log);
     }
-    // SIMD hosts: each value's mantissa in `[1, 2)` multiplies the accumulator's
-    // mantissa and its exponent is added, renormalising after every 64 values instead
-    // of after each (the mantissa stays below 2^65): the same roundings as `Acc::mul`,
-    // since scaling by a power of two is exact, without a split on the dependency
-    // chain of each product (host streaming step -4%). Scalar code keeps `Acc::mul`:
-    // on Cortex-M4F this form cost 12% more instructions per `observe`.
-    for (masks, vals) in t.decs.chunks(64).zip(val.chunks(64)) {
-        for (&mask, &v) in masks.iter().zip(vals) {
-            let (m, e) = v.split();
-            for (d, a) in acc.iter_mut().enumerate() {
-                if mask >> d & 1 == 1 {
-                    a.m *= m;
-                    a.e = a.e.saturating_add(e);
-                }
+}
+
+/// Components per partial product of the streaming state ([`chunk_values`]).
+pub const VALUE_CHUNK: usize = 16;
+
+/// Streaming state: the partial products, per decomposition, of every chunk of
+/// [`VALUE_CHUNK`] cached component values of a template (`parts[c]` for components
+/// `c·VALUE_CHUNK ..`), recomputed from the values.
+#[inline(never)]
+pub fn chunk_values<W: Lanes, const L: usize, const NV: usize, const C: usize, const D: usize>(
+    t: &Tpl<W, L, NV, C>,
+    val: &[W::Scalar],
+    parts: &mut [[Acc<W::Scalar>; D]],
+) {
+    for (c, part) in parts.iter_mut().enumerate() {
+        update_chunk(t, val, c, part);
+    }
+}
+
+/// Streaming state: recomputes the partial products of the chunks holding this
+/// template's components among `comps` (global indices, this template's from
+/// `first`; ascending, so each chunk is recomputed once).
+#[inline(never)]
+pub fn update_chunks<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const D: usize,
+    I: Copy + Into<u64>,
+>(
+    t: &Tpl<W, L, NV, C>,
+    comps: &[I],
+    first: usize,
+    val: &[W::Scalar],
+    parts: &mut [[Acc<W::Scalar>; D]],
+) {
+    let mut last = usize::MAX;
+    for &k in comps {
+        let k = usize::try_from(k.into())
+            .unwrap_or(usize::MAX)
+            .wrapping_sub(first);
+        if k >= t.decs.len() || k / VALUE_CHUNK == last {
+            continue;
+        }
+        last = k / VALUE_CHUNK;
+        if let Some(part) = parts.get_mut(last) {
+            update_chunk(t, val, last, part);
+        }
+    }
+}
+
+/// The partial products of chunk `c` of a template's cached values.
+#[inline(always)]
+fn update_chunk<W: Lanes, const L: usize, const NV: usize, const C: usize, const D: usize>(
+    t: &Tpl<W, L, NV, C>,
+    val: &[W::Scalar],
+    c: usize,
+    part: &mut [Acc<W::Scalar>; D],
+) {
+    *part = [Acc::ONE; D];
+    let start = c * VALUE_CHUNK;
+    let end = (start + VALUE_CHUNK).min(t.decs.len());
+    if let (Some(masks), Some(vals)) = (t.decs.get(start..end), val.get(start..)) {
+        state_values_of(masks, vals, t.log, part);
+    }
+}
+
+/// Streaming state: the decompositions' products from the partial products of every
+/// chunk (each `m` in `[1, 2)`: the mantissas are multiplied, renormalising after every
+/// 64 chunks, and the exponents and logs added).
+#[inline(never)]
+pub fn combine_chunks<T: Real, const D: usize>(parts: &[[Acc<T>; D]], acc: &mut [Acc<T>; D]) {
+    for block in parts.chunks(64) {
+        for part in block {
+            for (a, p) in acc.iter_mut().zip(part) {
+                a.m *= p.m;
+                a.e = a.e.saturating_add(p.e);
+                a.lg += p.lg;
             }
         }
         for a in acc.iter_mut() {
-            a.mul(W::Scalar::ONE);
+            a.mul(T::ONE);
         }
     }
 }

@@ -551,14 +551,18 @@ fn component_int(components: usize) -> (Ident, usize) {
 
 /// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, see
 /// `state.rs`), their scales and fused form, every component's value and posteriors,
-/// the decomposition weights.
-fn state_bytes(layout: &Layout, cx: &Context) -> usize {
+/// the values' partial products, the decomposition weights.
+fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     let (n, c, scalar) = (cx.n, cx.c, cx.scalar);
+    // `Acc`: a mantissa, an `i32` exponent and a log, aligned to the scalar.
+    let acc = 2 * scalar + scalar.max(4);
+    let chunks = tpls.iter().map(state::value_chunks).sum::<usize>().max(1);
     let row_tables = if cx.simd_lanes > 1 { 2 } else { 1 };
     n * c * scalar * row_tables
         + n * scalar
         + n * fused_bytes(c, scalar)
         + layout.components * scalar
+        + chunks * cx.d_count * acc
         + layout.rows * c * scalar
         + cx.d_count * scalar
         + 16
@@ -662,7 +666,7 @@ fn report(
         stack_marginals: with_table(prescale.marginals && !one_pass, marginals_stack),
         stack_mpe: with_table(prescale.values, top + deepest),
         stack_state: top + deepest,
-        state_bytes: state_bytes(layout, cx),
+        state_bytes: state_bytes(layout, tpls, cx),
         table_bytes,
         macs_log_likelihood: macs_ll,
         macs_marginals: macs_marg,

@@ -20,7 +20,10 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
     } else {
         TokenStream::new()
     };
+    let chunks = int(tpls.iter().map(value_chunks).sum::<usize>().max(1));
     quote! {
+        /// Partial products of the streaming state: chunks of `VALUE_CHUNK` components.
+        const NUM_VALUE_CHUNKS: usize = #chunks;
         #ty
         impl State {
             /// A state with no evidence at any place (all zeros in memory: rows of ones are
@@ -32,6 +35,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
                     lns: [0.0; NUM_PLACES],
                     fused: [#rt::Fused::ZERO; NUM_PLACES],
                     val: [0.0; NUM_COMPONENTS],
+                    parts: [[#rt::Acc::ONE; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
                     post: [[0.0; NUM_CLASSES]; NUM_ROWS],
                     w: [0.0; NUM_DECOMPOSITIONS],
                     lhat: 0.0,
@@ -95,6 +99,7 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
             lns: [#t; NUM_PLACES],
             fused: [#rt::Fused<#t, NUM_CLASSES>; NUM_PLACES],
             val: [#t; NUM_COMPONENTS],
+            parts: [[#rt::Acc<#t>; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
             post: [[#t; NUM_CLASSES]; NUM_ROWS],
             w: [#t; NUM_DECOMPOSITIONS],
             lhat: #t,
@@ -111,6 +116,14 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
             }
         }
     }
+}
+
+/// The number of partial products a template's components take in the `State`
+/// (`VALUE_CHUNK` components each, see `graphspn_runtime::__private::chunk_values`).
+pub(super) fn value_chunks(tp: &Tpl) -> usize {
+    tp.members
+        .len()
+        .div_ceil(graphspn_runtime::__private::VALUE_CHUNK)
 }
 
 /// Per template: the component values held in `val` (the cache's layout) multiplied
@@ -158,19 +171,28 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
     let (comp_t, _) = component_int(tpls.iter().map(|tp| tp.members.len()).sum());
     let mut eval_fns = TokenStream::new();
     let mut update = TokenStream::new();
-    let values = cached_values(tpls, &quote!(self.val));
     let mut refresh = TokenStream::new();
+    let mut first_chunk = 0;
     for (ti, tp) in tpls.iter().enumerate() {
+        let chunks = value_chunks(tp);
+        let (chunk0, chunk_end) = (int(first_chunk), int(first_chunk + chunks));
+        first_chunk += chunks;
         let (f, stat) = (tp.eval_group(ti), &tp.stat);
         let (first_component, first_row) = (int(tp.first_component), int(tp.first_row));
         let groups = int(tp.groups());
         let fc = format_ident!("{f}_components");
         eval_fns.extend(quote! {
             #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, #source, g, v, p); } }
-            #[inline(never)] fn #fc(&mut self, comps: &[#comp_t]) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_components(&#stat, &self.ev, #source, comps, #first_component, v, p); } }
+            #[inline(never)] fn #fc(&mut self, comps: &[#comp_t]) {
+                if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_components(&#stat, &self.ev, #source, comps, #first_component, v, p); }
+                if let (Some(v), Some(ps)) = (self.val.get(#first_component..), self.parts.get_mut(#chunk0..#chunk_end)) { #rt::update_chunks(&#stat, comps, #first_component, v, ps); }
+            }
         });
         update.extend(quote!(self.#fc(comps);));
-        refresh.extend(quote!(for g in 0..#groups { self.#f(g); }));
+        refresh.extend(quote! {
+            for g in 0..#groups { self.#f(g); }
+            if let (Some(v), Some(ps)) = (self.val.get(#first_component..), self.parts.get_mut(#chunk0..#chunk_end)) { #rt::chunk_values(&#stat, v, ps); }
+        });
     }
     quote! {
         #eval_fns
@@ -180,10 +202,10 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
             #update
         }
 
-        /// Re-mixes the decompositions from the cached component values.
+        /// Re-mixes the decompositions from the cached partial products.
         fn remix(&mut self) {
             let mut acc = [#rt::Acc::ONE; NUM_DECOMPOSITIONS];
-            #values
+            #rt::combine_chunks(&self.parts, &mut acc);
             match #rt::mix(&acc) {
                 Some((l, w)) => {
                     self.lhat = l;
