@@ -471,6 +471,35 @@ fn section_bytes(elf: &std::path::Path, name: &str) -> u64 {
         .unwrap_or(0)
 }
 
+/// `State::new()` is all zeros, so the firmware's buffers start as a `memset` of
+/// `.bss`: no object in the ELF is as large as the smallest map's `State`
+/// (`smallest` bytes), as a constant initial image of a state would be (a non-zero
+/// field in `new` once put an 88 KB image of the buffers in flash).
+fn assert_no_state_image(elf: &std::path::Path, smallest: usize, target: &str) {
+    let out = Command::new("nm")
+        .args(["-S", "-t", "d", "--size-sort"])
+        .arg(elf)
+        .output()
+        .expect("running `nm` (binutils)");
+    assert!(out.status.success(), "nm -S {}", elf.display());
+    let text = String::from_utf8_lossy(&out.stdout);
+    let largest = text
+        .lines()
+        .filter_map(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            let data = matches!(w.get(2).copied(), Some("r" | "R" | "d" | "D"));
+            data.then(|| Some((w.get(1)?.parse::<usize>().ok()?, w.get(3)?.to_string())))?
+        })
+        .max();
+    if let Some((size, name)) = largest {
+        assert!(
+            size < smallest,
+            "{target}: {name} holds {size} bytes of initialised data, at least a whole \
+             State ({smallest} B): State::new() must stay all zeros"
+        );
+    }
+}
+
 /// Answers of the in-process host build (`graphspn-generated`) of one map.
 struct HostAnswers {
     values: [Result<f32, String>; 4],
@@ -1063,6 +1092,15 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
         MCUS.map(|mcu| s.spawn(move || (mcu.target, run_qemu(mcu, "release"))))
             .map(|run| run.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
     });
+    for (target, r) in &reports {
+        let smallest = r
+            .maps
+            .iter()
+            .filter_map(|m| m.state_bytes)
+            .min()
+            .unwrap_or(0);
+        assert_no_state_image(&elf(target, "release"), smallest, target);
+    }
     let hosts = [
         host_answers!(demo_floor, 0),
         host_answers!(saarbrucken_seq2_night1, 1),

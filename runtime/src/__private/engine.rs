@@ -69,6 +69,14 @@ impl<T: Real> Acc<T> {
         lg: T::ZERO,
     };
 
+    /// All-zero bits (the product 0): what a `const` all-zero `State` holds before its
+    /// first use computes the products (so it lives in `.bss`, with no image in flash).
+    pub const ZERO: Acc<T> = Acc {
+        m: T::ZERO,
+        e: 0,
+        lg: T::ZERO,
+    };
+
     /// Multiplies by a linear value `v ≥ 0` (one rounding).
     #[inline(always)]
     pub fn mul(&mut self, v: T) {
@@ -919,5 +927,78 @@ mod tests {
         assert!(check_row(&[0.0f32, -0.0, 2.0], 0, 7).is_ok());
         assert!(check_row(&[0.0f32, -1.0, 2.0], 0, 7).is_err());
         assert!(check_row(&[0.0f32, -0.0], 0, 7).is_err());
+    }
+
+    /// A one-variable template of 40 components (three chunks, the last partial) in
+    /// three decompositions, some shared; its functions are never called here.
+    fn chunked_template() -> Tpl<f32, 1, 1, 2> {
+        fn unused(_: &[[f32; 2]; 1]) -> f32 {
+            0.0
+        }
+        fn unused_post(_: &[[f32; 2]; 1], _: &mut [[f32; 2]; 1]) -> f32 {
+            0.0
+        }
+        fn unused_mpe(_: &[[f32; 2]; 1], _: &mut [[u16; 1]; 1]) -> f32 {
+            0.0
+        }
+        static PLACES: [[[u16; 1]; 1]; 40] = [[[0]]; 40];
+        static DECS: [u64; 40] = {
+            let mut d = [0u64; 40];
+            let mut i = 0;
+            while i < 40 {
+                d[i] = [0b001, 0b010, 0b100, 0b011, 0b111][i % 5];
+                i += 1;
+            }
+            d
+        };
+        Tpl {
+            places: &PLACES,
+            decs: &DECS,
+            log: false,
+            fwd: unused,
+            post: unused_post,
+            max: unused,
+            mpe: unused_mpe,
+        }
+    }
+
+    /// The state's chunked partial products give every decomposition's product (to
+    /// the roundings of another multiplication order), and after values change,
+    /// recomputing only their chunks gives exactly a full recomputation.
+    #[test]
+    fn chunk_products_match_the_full_product_and_update_exactly() {
+        let t = chunked_template();
+        let mut val = [0f32; 40];
+        for (i, v) in val.iter_mut().enumerate() {
+            *v = 0.5 + ((i * 37) % 17) as f32 / 10.0;
+        }
+        val[7] = 1e-30;
+        let mut full = [Acc::ONE; 3];
+        state_values(&t, &val, &mut full);
+        let mut parts = [[Acc::ONE; 3]; 3];
+        chunk_values(&t, &val, &mut parts);
+        let mut acc = [Acc::ONE; 3];
+        combine_chunks(&parts, &mut acc);
+        for (a, f) in acc.iter().zip(&full) {
+            assert!((a.ln() - f.ln()).abs() < 1e-4, "{} vs {}", a.ln(), f.ln());
+        }
+        // Components 3 and 35 (chunks 0 and 2) change; 99 and MAX are not this
+        // template's and are skipped.
+        val[3] = 3.0;
+        val[35] = 1e-20;
+        update_chunks(&t, &[3u16, 35, 99, u16::MAX], 0, &val, &mut parts);
+        let mut fresh = [[Acc::ONE; 3]; 3];
+        chunk_values(&t, &val, &mut fresh);
+        for (p, f) in parts.iter().flatten().zip(fresh.iter().flatten()) {
+            assert_eq!((p.m, p.e, p.lg), (f.m, f.e, f.lg));
+        }
+        // Offsets: the same components as global indices 100 + k.
+        val[20] = 2.0;
+        update_chunks(&t, &[120u32], 100, &val, &mut parts);
+        chunk_values(&t, &val, &mut fresh);
+        assert_eq!(
+            (parts[1][0].m, parts[1][0].e),
+            (fresh[1][0].m, fresh[1][0].e)
+        );
     }
 }

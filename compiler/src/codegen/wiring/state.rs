@@ -35,7 +35,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
                     lns: [0.0; NUM_PLACES],
                     fused: [#rt::Fused::ZERO; NUM_PLACES],
                     val: [0.0; NUM_COMPONENTS],
-                    parts: [[#rt::Acc::ONE; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
+                    parts: [[#rt::Acc::ZERO; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
                     post: [[0.0; NUM_CLASSES]; NUM_ROWS],
                     w: [0.0; NUM_DECOMPOSITIONS],
                     lhat: 0.0,
@@ -81,8 +81,9 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
         ///
         /// An update (`set_evidence`, `observe`, `clear_evidence`) re-evaluates only the
         /// components containing that place (at most one per decomposition) and re-mixes the
-        /// decompositions from the cached component values (never by subtracting, so
-        /// thousands of updates do not drift). `observe` keeps each class's product of
+        /// decompositions from the cached component values (partial products of 16 values,
+        /// recomputed where a value changed; never by dividing or subtracting, so a million
+        /// updates do not drift). `observe` keeps each class's product of
         /// observations exactly (a mantissa and a binary exponent per class): no class
         /// underflows, none is locked out however many observations arrive, and
         /// `log_likelihood` is that of the product of every observation. Costs: an update, about
