@@ -148,7 +148,8 @@ fn dense_structures_use_kernels_and_stay_small() {
         let decs: Vec<_> = (0..3).map(|s| decompose(&g, &m.templates, s)).collect();
         let src = generate(&m, &g, &decs, &CodegenOptions::default()).unwrap();
         // Every Star/Three/Pair template becomes floor + sparse block code (values,
-        // posteriors, max-product values) with MPE backtracking, not per-node code.
+        // posteriors, max-product values) with MPE backtracking per lane, not per-node
+        // code.
         for k in [
             "_fwd(x: &[[V;",
             "_post(x: &[[V;",
@@ -156,7 +157,8 @@ fn dense_structures_use_kernels_and_stay_small() {
             "post_rows(",
             "V::sum(",
             "V::max_of(",
-            "amax(",
+            "amax_lanes(",
+            "LaneArgs {",
             "d3_back(",
             "value_pass(",
         ] {
@@ -174,9 +176,10 @@ fn dense_structures_use_kernels_and_stay_small() {
             ..Default::default()
         };
         let src = generate(&m, &g, &decs, &scalar).unwrap();
-        for k in ["Lanes::max(", "Lanes::mul_add("] {
+        for k in ["Lanes::max(", "Lanes::mul_add(", "amax(", "sel("] {
             assert!(src.contains(k), "no {k} in the generated code");
         }
+        assert!(!src.contains("LaneArgs"), "packed MPE codes in scalar code");
         for k in [".max(", ".mul_add("] {
             assert!(!src.contains(k), "{k} in the generated code");
         }
