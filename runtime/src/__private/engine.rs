@@ -560,15 +560,12 @@ pub fn eval_components<
     let mut ks = [0usize; L];
     let mut n = 0;
     for &c in comps {
-        let k = usize::try_from(c.into())
-            .unwrap_or(usize::MAX)
-            .wrapping_sub(first);
+        let Some(k) = local_component(t, c, first) else {
+            continue;
+        };
         let Some(pl) = t.places.get(k / L).and_then(|g| g.get(k % L)) else {
             continue;
         };
-        if k >= t.decs.len() {
-            continue;
-        }
         if let (Some(b), Some(o)) = (batch.get_mut(n), ks.get_mut(n)) {
             *b = *pl;
             *o = k;
@@ -582,6 +579,18 @@ pub fn eval_components<
     if n > 0 {
         store_group(t, e, table, &batch, ks.get(..n).unwrap_or(&[]), val, post);
     }
+}
+
+/// Template `t`'s index of global component `c` (`t`'s components being global
+/// `first ..`), or `None` for another template's component or padding.
+#[inline(always)]
+fn local_component<W: Lanes, const L: usize, const NV: usize, const C: usize, I: Into<u64>>(
+    t: &Tpl<W, L, NV, C>,
+    c: I,
+    first: usize,
+) -> Option<usize> {
+    let k = usize::try_from(c.into()).ok()?.checked_sub(first)?;
+    (k < t.decs.len()).then_some(k)
 }
 
 /// Evaluates the lane group `p` and stores lane `l`'s value and local posteriors as
@@ -676,10 +685,10 @@ pub fn update_chunks<
 ) {
     let mut last = usize::MAX;
     for &k in comps {
-        let k = usize::try_from(k.into())
-            .unwrap_or(usize::MAX)
-            .wrapping_sub(first);
-        if k >= t.decs.len() || k / VALUE_CHUNK == last {
+        let Some(k) = local_component(t, k, first) else {
+            continue;
+        };
+        if k / VALUE_CHUNK == last {
             continue;
         }
         last = k / VALUE_CHUNK;
