@@ -60,6 +60,7 @@ fn floor_case(variants: Vec<Variant>, vectors: usize) -> TreeCase {
         seed: 1,
         interpreter_every: 4,
         extreme_every: 0,
+        factor_tables: true,
     }
 }
 
@@ -128,6 +129,7 @@ fn cold_maps_match_tree_instance_and_interpreter() {
             seed,
             interpreter_every: 4,
             extreme_every: 0,
+            factor_tables: true,
         });
     }
     common::trees::tree_differential("tree_diff", &cases);

@@ -123,6 +123,8 @@ struct Paths {
     several_roots: usize,
     deep: usize,
     one_tree: usize,
+    /// Scalar modules whose deepest entry point computes `φ` in each pass (no table).
+    factor_rows: usize,
     brute_force: usize,
 }
 
@@ -192,7 +194,10 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
     paths.several_roots += usize::from(trees.forests[0].roots().len() > 1);
     paths.deep += usize::from(trees.forests.iter().any(|f| f.height() >= 6));
     paths.one_tree += usize::from(t == 1);
-    TreeCase {
+    // Scalar variants of seeds 6 and 7 mod 8 get a stack budget below their deepest
+    // entry point's table: that one computes `φ` in each pass.
+    let factor_tables = seed % 8 < 4;
+    let case = TreeCase {
         name: format!("s{seed}"),
         model,
         map,
@@ -202,7 +207,13 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
         seed,
         interpreter_every: 1,
         extreme_every: 5,
-    }
+        factor_tables,
+    };
+    // Whether some entry point of the module computes `φ` in each pass.
+    let src = case.source(&variant);
+    let flags = src.find("FactorCache {").map(|i| &src[i..]).unwrap_or("");
+    paths.factor_rows += usize::from(flags[..flags.find('}').unwrap_or(0)].contains("false"));
+    case
 }
 
 /// Brute-force enumeration of a small case: `TreeInstance` (which the generated code
@@ -282,6 +293,7 @@ fn random_tree_mixtures_match_tree_instance_interpreter_and_brute_force() {
             several_roots,
             deep,
             one_tree,
+            factor_rows,
             brute_force,
         } = paths;
         for (what, count) in [
@@ -299,6 +311,7 @@ fn random_tree_mixtures_match_tree_instance_interpreter_and_brute_force() {
             ("several roots", several_roots),
             ("a deep tree", deep),
             ("one tree", one_tree),
+            ("φ computed in each pass", factor_rows),
             ("brute force", brute_force),
         ] {
             assert!(count > 0, "no fuzz structure reached: {what} ({paths:?})");

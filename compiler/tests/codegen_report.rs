@@ -3,7 +3,11 @@
 
 use std::path::PathBuf;
 
-use graphspn_compiler::codegen::{Builder, Vectorisation};
+use graphspn_compiler::codegen::{
+    Builder, CodegenOptions, Vectorisation, generate_trees_with_report,
+};
+use graphspn_compiler::map::TopoMap;
+use graphspn_compiler::treemix::{SpanningTrees, TreeMixture};
 
 /// The demo model on demo map `file` with 5 decompositions, seed 0.
 fn builder(file: &str, v: Vectorisation) -> Builder {
@@ -211,4 +215,55 @@ fn fixed_point_wraps_block_templates_and_refuses_other_forms() {
             "{err}"
         );
     }
+}
+
+/// The tree mixture's evidence factors: on a microcontroller an entry point keeps a
+/// table of every place's `φ` (computed once instead of once per forest and pass)
+/// exactly when its stack bound with the table fits the budget; SIMD code always does.
+/// Scalar code folds `u` into the message matrices, SIMD code keeps it in `φ`.
+#[test]
+fn tree_factor_tables_follow_the_stack_budget() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
+    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
+    let map = TopoMap::load(dir.join("saarbrucken_seq2_night1.json")).unwrap();
+    let forests = SpanningTrees::covering(&map, model.trees, 0).unwrap();
+    let trees = |v: Vectorisation, budget: Option<usize>| {
+        let options = CodegenOptions {
+            vectorisation: v,
+            max_stack_bytes: budget,
+            ..Default::default()
+        };
+        generate_trees_with_report(&model, &map, &forests, &options).expect("generation")
+    };
+    let flags = |src: &str| {
+        let start = src.find("FactorCache {").expect("the model's cache flags");
+        let end = start + src[start..].find('}').unwrap();
+        src[start..end].split_whitespace().collect::<String>()
+    };
+    // 230 places, 10 classes: the table is 230 · (40 + 4) bytes.
+    let table = 230 * 44;
+    let (src, r) = trees(Vectorisation::Scalar, None);
+    assert_eq!(
+        flags(&src),
+        "FactorCache{values:true,marginals:false,state:true,",
+        "{r:?}"
+    );
+    assert!(src.contains("folded: true"));
+    assert!(r.stack_log_likelihood <= 16 * 1024 && r.stack_mpe <= 16 * 1024);
+    // The marginals' stored messages leave no room for the table within 16 KiB.
+    assert!(r.stack_marginals + table > 16 * 1024, "{r:?}");
+    // One byte less than the MPE bound with the table: the value passes go without.
+    let (src, small) = trees(Vectorisation::Scalar, Some(r.stack_mpe - 1));
+    assert!(
+        flags(&src).starts_with("FactorCache{values:false,"),
+        "{small:?}"
+    );
+    assert_eq!(small.stack_log_likelihood + table, r.stack_log_likelihood);
+    assert_eq!(small.stack_mpe + table, r.stack_mpe);
+    let (src, _) = trees(Vectorisation::Simd, None);
+    assert_eq!(
+        flags(&src),
+        "FactorCache{values:true,marginals:true,state:true,"
+    );
+    assert!(src.contains("folded: false"));
 }

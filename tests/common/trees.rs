@@ -3,7 +3,7 @@
 //! against `TreeInstance` (exact, f64) on every vector and against the interpreter on
 //! the explicit instance SPN (`instance_spn`, tempered evidence) on a share of them.
 
-use graphspn::codegen::{CodegenOptions, generate_trees};
+use graphspn::codegen::{CodegenOptions, Precision, Vectorisation, generate_trees_with_report};
 use graphspn::interpreter::{Evaluator, Evidence};
 use graphspn::map::{ClassId, TopoMap};
 use graphspn::spn::Mixing;
@@ -37,6 +37,10 @@ pub struct TreeCase {
     /// `2^-135` in turn (exact but for `f32` subnormals: subnormal `f32` inputs for the
     /// smallest entries, or for whole rows).
     pub extreme_every: usize,
+    /// `true`: a 64 KiB stack budget, so every entry point keeps its table of evidence
+    /// factors. `false`: scalar variants get their largest stack bound less one table,
+    /// so at least the deepest entry point computes `φ` in each pass instead.
+    pub factor_tables: bool,
 }
 
 impl TreeCase {
@@ -85,14 +89,33 @@ impl TreeCase {
     pub fn source(&self, v: &Variant) -> String {
         // f64 scalar `marginals` of the 230-place map needs 18 KB of message scratch:
         // more than the default 16 KiB budget of scalar code (microcontrollers).
-        let opts = CodegenOptions {
+        let opts = |budget: usize| CodegenOptions {
             precision: v.precision,
             vectorisation: v.vectorisation,
-            max_stack_bytes: Some(64 * 1024),
+            max_stack_bytes: Some(budget),
             ..Default::default()
         };
-        generate_trees(&self.model, &self.map, &self.trees, &opts)
-            .unwrap_or_else(|e| panic!("{}: {e}", self.module(v)))
+        let generate = |budget: usize| {
+            generate_trees_with_report(&self.model, &self.map, &self.trees, &opts(budget))
+        };
+        let (src, r) = generate(64 * 1024).unwrap_or_else(|e| panic!("{}: {e}", self.module(v)));
+        if self.factor_tables || v.vectorisation == Vectorisation::Simd {
+            return src;
+        }
+        let (n, c) = (self.map.num_places(), self.model.num_classes());
+        let scalar = if v.precision == Precision::F32 { 4 } else { 8 };
+        let table = n * (c * scalar + 4);
+        let deepest = [
+            r.stack_log_likelihood,
+            r.stack_marginals,
+            r.stack_mpe,
+            r.stack_state,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0);
+        // The state's other calls may need more than that budget: then keep the tables.
+        generate(deepest - table).map_or(src, |(s, _)| s)
     }
 }
 

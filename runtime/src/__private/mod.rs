@@ -318,9 +318,13 @@ pub trait Real:
     fn exp(self) -> Self;
     /// Neither NaN nor infinite.
     fn is_finite(self) -> bool;
-    /// `(finite and ≥ +0, > 0)` from the bit pattern alone (integer compares, no float
-    /// compare: cheap without an FPU). `-0.0` reads as not `≥ +0`.
-    fn plain_mass(self) -> (bool, bool);
+    /// Whether every entry of `row` is finite and `≥ +0` and some entry `> 0`, from the
+    /// bit patterns alone: the largest pattern as an unsigned integer lies strictly
+    /// between `+0` and `+inf` (a set sign bit, an all-ones exponent or a row of zeros
+    /// fails). One integer compare per entry, no float compare (none without an FPU,
+    /// four instructions per entry with one on a Cortex-M4F). `-0.0` reads as not
+    /// `≥ +0`.
+    fn plain_row<const C: usize>(row: &[Self; C]) -> bool;
     /// The magnitude's bits as an integer (sign cleared): for values `≥ 0` (and
     /// `-0.0`), ordered as the values are, so the largest entry of an evidence row is
     /// found by integer compares (no soft-float call without an FPU).
@@ -328,12 +332,21 @@ pub trait Real:
     /// `(m, e)` with `self = m·2^e` exactly and `m` in `[1, 2)`; zero, infinite and NaN
     /// values are returned unchanged with `e = 0`, subnormals are normalised.
     fn split(self) -> (Self, i32);
+    /// `(2^-e, e)` for a positive normal value `self` in `[2^e, 2^(e+1))` whose
+    /// exponent lies in `MIN_EXP + 1 ..= -MIN_EXP` (both factors normal; exact): a few
+    /// integer operations, no branch. Outside that domain (zero, subnormal, `≥ 2^127`
+    /// in `f32`, infinite, NaN) the pair is meaningless; callers keep values inside.
+    fn normal_scale(self) -> (Self, i32);
+    /// Whether `self` lies in the domain of [`Real::normal_scale`] (one integer range
+    /// check of the exponent bits; `false` for zero, subnormals, NaN, infinities and
+    /// the top binade).
+    fn scalable(self) -> bool;
     /// `2^e`, exact; `e` is clamped to the normal range (`-126..=127` for `f32`,
     /// `-1022..=1023` for `f64`).
     fn pow2(e: i32) -> Self;
-    /// Binary exponent of the flush threshold of the tree-mixture driver: entries of a
-    /// row normalised to a largest entry in `[1, 2)` that fall below `2^TINY_EXP` are
-    /// set to zero (`-80` for `f32`, `-600` for `f64`; see `tree`).
+    /// Binary exponent of the flush threshold of the tree-mixture driver: on SIMD hosts
+    /// entries of a row normalised to a sum in `[1, 2)` that fall below `2^TINY_EXP`
+    /// are set to zero (`-80` for `f32`, `-600` for `f64`; see `tree`).
     const TINY_EXP: i32;
     /// Binary exponent of the smallest normal value (`-126` for `f32`, `-1022` for `f64`).
     const MIN_EXP: i32;
@@ -387,14 +400,25 @@ macro_rules! real_impl {
                 $t::is_finite(self)
             }
             #[inline(always)]
-            fn plain_mass(self) -> (bool, bool) {
-                // Sign clear and exponent below all-ones; nonzero on top of that.
-                let (b, inf) = (self.to_bits(), ($emask as $bits) << $mant);
-                (b < inf, b.wrapping_sub(1) < inf - 1)
+            fn plain_row<const C: usize>(row: &[$t; C]) -> bool {
+                let inf = ($emask as $bits) << $mant;
+                let top = row.iter().fold(0, |m: $bits, v| m.max(v.to_bits()));
+                top.wrapping_sub(1) < inf - 1
             }
             #[inline(always)]
             fn magnitude_key(self) -> u64 {
                 u64::from(self.to_bits() & !(1 << ($mant + $ebits)))
+            }
+            #[inline(always)]
+            fn normal_scale(self) -> ($t, i32) {
+                let ex = ((self.to_bits() >> $mant) & $emask) as i32;
+                let scale = $t::from_bits(((2 * $bias - ex) as $bits) << $mant);
+                (scale, ex - $bias)
+            }
+            #[inline(always)]
+            fn scalable(self) -> bool {
+                let ex = (self.to_bits() >> $mant) & $emask;
+                (2..2 * $bias).contains(&ex)
             }
             #[inline(always)]
             fn split(self) -> ($t, i32) {

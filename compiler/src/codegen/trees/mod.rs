@@ -34,7 +34,7 @@ use crate::treemix::{SpanningTrees, TreeMixture};
 use super::emit::{array, int, int_array, rt};
 use super::surface::{CodeReport, Surface, compiled_map_impl, constants_and_types};
 use super::{CodegenError, CodegenOptions};
-use plan::{Context, ForestPlan, Potentials};
+use plan::{Context, FactorCache, ForestPlan, Potentials};
 
 /// Checks that the model, the map and the forests fit each other.
 pub fn check_inputs(
@@ -77,7 +77,7 @@ pub fn module(
         .iter()
         .map(|f| ForestPlan::new(f, &pot, cx.c))
         .collect();
-    let report = plan::report(&plans, &cx);
+    let (report, cache) = plan::report(&plans, &cx, options.stack_budget());
     report.check_budget(options)?;
     let constants = constants_and_types(&Surface {
         l: &cx.l,
@@ -95,7 +95,7 @@ pub fn module(
     });
     let items = items(model, &cx);
     let tables = forest_tables(&plans, &cx);
-    let statics = model_static(&pot, &cx);
+    let statics = model_static(&pot, cache, &cx);
     let stateless = api::stateless_api(&cx);
     let state = api::state_api(&cx);
     let compiled_map = compiled_map_impl(&cx.l);
@@ -207,26 +207,38 @@ fn row(values: &[f64], pad: f64, cx: &Context) -> TokenStream {
 }
 
 /// `MODEL`: the potentials (ψ by columns), `γ`, the mixing and the forests.
-fn model_static(pot: &Potentials, cx: &Context) -> TokenStream {
+fn model_static(pot: &Potentials, cache: FactorCache, cx: &Context) -> TokenStream {
     let rt = rt();
     let c = cx.c;
-    let columns = array((0..c).map(|j| {
-        let col: Vec<f64> = (0..c).map(|a| pot.psi[a * c + j]).collect();
-        row(&col, 0.0, cx)
-    }));
+    let columns = |m: &[f64]| {
+        array((0..c).map(|j| {
+            let col: Vec<f64> = (0..c).map(|a| m[a * c + j]).collect();
+            row(&col, 0.0, cx)
+        }))
+    };
+    let (up, down, folded) = (columns(&pot.up), columns(&pot.down), pot.folded);
     let unary = row(&pot.unary, 0.0, cx);
     let pad = row(&vec![0.0; c], 1.0, cx);
     let v = quote!(V).into_token_stream();
+    let FactorCache {
+        values,
+        marginals,
+        state,
+    } = cache;
     quote! {
-        /// The compiled model: `ψ` by columns and `u` (largest entry 1), `γ`, the mixing and
-        /// the forests.
+        /// The compiled model: the message matrices by columns and `u` (largest entry 1),
+        /// where `u` enters, `γ`, the mixing, the forests and which entry points keep a
+        /// table of every place's `φ`.
         static MODEL: #rt::TreeModel<#v, NUM_CLASSES, K> = #rt::TreeModel {
-            psi: #columns,
+            psi_up: #up,
+            psi_down: #down,
             unary: #unary,
+            folded: #folded,
             pad: #pad,
             gamma: EVIDENCE_EXPONENT,
             average: AVERAGE_MIXING,
             forests: &FORESTS,
+            cache: #rt::FactorCache { values: #values, marginals: #marginals, state: #state },
         };
     }
 }

@@ -97,22 +97,32 @@ impl Context {
     }
 }
 
-/// `ψ` and `u` scaled to a largest entry of 1 and rounded as the generated code holds
-/// them (`psi[a · C + b]`).
+/// `ψ` and `u` scaled to a largest entry of 1, and the message matrices, rounded as
+/// the generated code holds them (`[a · C + j]`): folded (scalar code, see the
+/// runtime's `TreeModel::folded`) `up = ψ·diag(u)` and `down = diag(u)·ψ`, each
+/// product of the scaled values rounded once; otherwise both `ψ`.
 pub(super) struct Potentials {
-    pub psi: Vec<f64>,
+    pub up: Vec<f64>,
+    pub down: Vec<f64>,
     pub unary: Vec<f64>,
+    pub folded: bool,
 }
 
 impl Potentials {
     pub fn new(model: &TreeMixture, cx: &Context) -> Potentials {
         let scaled = |v: &[f64]| {
             let max = v.iter().cloned().fold(0.0, f64::max);
-            v.iter().map(|x| cx.round(x / max)).collect()
+            v.iter().map(|x| x / max).collect::<Vec<f64>>()
         };
+        let (psi, unary) = (scaled(&model.potential), scaled(&model.unary));
+        let c = cx.c;
+        let folded = cx.width == 1;
+        let entry = |i: usize, u: f64| cx.round(if folded { psi[i] * u } else { psi[i] });
         Potentials {
-            psi: scaled(&model.potential),
-            unary: scaled(&model.unary),
+            up: (0..c * c).map(|i| entry(i, unary[i % c])).collect(),
+            down: (0..c * c).map(|i| entry(i, unary[i / c])).collect(),
+            unary: unary.iter().map(|&x| cx.round(x)).collect(),
+            folded,
         }
     }
 }
@@ -186,24 +196,35 @@ impl ForestPlan {
 }
 
 /// `ln Z_t`: the forest's value `Σ_y Π u(y_v) Π ψ(y_a, y_b)` with the scaled, rounded
-/// potentials (messages normalised by their sums, logs accumulated in `f64`).
+/// potentials as the generated code multiplies them (`u` in every belief, or folded
+/// into the upward matrix and multiplied into the roots' beliefs only; messages
+/// normalised by their sums, logs accumulated in `f64`).
 fn log_partition(post: &[[usize; 2]], children: &[Vec<u32>], pot: &Potentials, c: usize) -> f64 {
     let n = children.len();
     let mut msg = vec![Vec::new(); n];
     let mut log_z = 0.0;
     for &[v, d] in post {
-        let mut b = pot.unary.clone();
+        let mut b = if pot.folded {
+            vec![1.0; c]
+        } else {
+            pot.unary.clone()
+        };
         for &k in &children[v] {
             for (x, m) in b.iter_mut().zip(&msg[k as usize]) {
                 *x *= m;
             }
         }
         if d == 0 {
-            log_z += b.iter().sum::<f64>().ln();
+            let root: f64 = if pot.folded {
+                b.iter().zip(&pot.unary).map(|(x, u)| x * u).sum()
+            } else {
+                b.iter().sum()
+            };
+            log_z += root.ln();
             continue;
         }
         let m: Vec<f64> = (0..c)
-            .map(|a| (0..c).map(|j| pot.psi[a * c + j] * b[j]).sum())
+            .map(|a| (0..c).map(|j| pot.up[a * c + j] * b[j]).sum())
             .collect();
         let s: f64 = m.iter().sum();
         log_z += s.ln();
@@ -212,24 +233,51 @@ fn log_partition(post: &[[usize; 2]], children: &[Vec<u32>], pot: &Potentials, c
     log_z
 }
 
+/// Which entry points compute every place's `φ` once into a stack table (the
+/// runtime's `FactorCache`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct FactorCache {
+    /// `log_likelihood`, `labelled_log_likelihood` and `mpe`.
+    pub values: bool,
+    /// The stateless `marginals`.
+    pub marginals: bool,
+    /// The streaming state's `marginals`.
+    pub state: bool,
+}
+
 /// The report: stack bounds (frames of the runtime driver's passes, measured on
-/// Cortex-M4F and x86-64 well below these), state and table bytes, multiply-adds.
-pub(super) fn report(plans: &[ForestPlan], cx: &Context) -> CodeReport {
+/// Cortex-M4F and x86-64 well below these), state and table bytes, multiply-adds; and
+/// where the `φ` table goes: on SIMD hosts into every entry point that can use it, on
+/// scalar targets into each one whose bound with the table stays within `budget`.
+pub(super) fn report(
+    plans: &[ForestPlan],
+    cx: &Context,
+    budget: usize,
+) -> (CodeReport, FactorCache) {
     let (n, c, t, h, s) = (cx.n, cx.c, cx.t, cx.h, cx.scalar);
     let row = cx.row_bytes();
     // Calls, saved registers and the accumulators of every forest; a pass's row
     // temporaries (belief, message, evidence factor, its power, the parent's row,
     // the division, the downward message) with room for spills.
-    // On SIMD hosts every entry point first computes every place's evidence factor.
-    let cache = if cx.width > 1 { n * (row + 4) } else { 0 };
-    let base = 1024 + t * (24 + s) + cache;
+    let table = n * (row + 4);
+    let base = 1024 + t * (24 + s);
     let temps = 16 * row + 512;
     let value = h * (row + 1) + temps;
-    let stack_log_likelihood = base + value;
-    let stack_marginals = base + n * row + h * row + temps;
-    let stack_mpe = base + value + n * c;
+    let log_likelihood = base + value;
+    let marginals = base + n * row + h * row + temps;
+    let mpe = base + value + n * c;
     let path = h * (row + 2) + temps;
-    let stack_state = base + path.max(value + n * c);
+    let fits = |bytes: usize| cx.width > 1 || bytes + table <= budget;
+    let cache = FactorCache {
+        values: fits(mpe),
+        marginals: fits(marginals),
+        state: fits(base + value),
+    };
+    let with = |flag: bool, bytes: usize| if flag { bytes + table } else { bytes };
+    let stack_log_likelihood = with(cache.values, log_likelihood);
+    let stack_marginals = with(cache.marginals, marginals);
+    let stack_mpe = with(cache.values, mpe);
+    let stack_state = with(cache.state, base + value).max(base + path.max(value + n * c));
     let align = (cx.width * s).max(4);
     let fields = n * c * s + n * fused_bytes(c, s) + t * n * row + 4 * t * n + 4 * t + 1;
     let state_bytes = fields.div_ceil(align) * align;
@@ -242,7 +290,7 @@ pub(super) fn report(plans: &[ForestPlan], cx: &Context) -> CodeReport {
     let best = plans.iter().map(ForestPlan::non_roots).max().unwrap_or(0);
     let path_len = |v: usize| plans.iter().map(|p| p.depth[v] + 1).sum::<usize>();
     let worst_path = (0..n).map(|v| path_len(v) - t).max().unwrap_or(0);
-    CodeReport {
+    let report = CodeReport {
         lanes: cx.width,
         components: t * n,
         stack_log_likelihood,
@@ -256,5 +304,6 @@ pub(super) fn report(plans: &[ForestPlan], cx: &Context) -> CodeReport {
         macs_mpe: (edges + best) * mv,
         macs_observe_marginals: (worst_path + edges) * mv,
         units_per_update: (0..n).map(path_len).sum::<usize>() as f64 / n.max(1) as f64,
-    }
+    };
+    (report, cache)
 }

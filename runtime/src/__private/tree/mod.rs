@@ -12,30 +12,42 @@
 //!
 //! # Numerics (the flush rule and its error bound)
 //!
-//! Every row is kept with its largest entry in `[1, 2)` by exact power-of-two scaling;
-//! the exponents are summed as integers per forest, so a forest's value is
-//! `m · 2^k` with one rounding per multiplication and no overflow or underflow however
-//! large the map. No `f64` arithmetic happens in `f32` code.
+//! Every row is kept with the sum of its entries in `[1, 2)` (so its largest entry in
+//! `[1/C, 2)`) by exact power-of-two scaling; the exponents are summed as integers per
+//! forest, so a forest's value is `m · 2^k` with one rounding per multiplication and
+//! no overflow however large the map. No `f64` arithmetic happens in `f32` code. (The
+//! sum, not the largest entry, picks the scale: a few additions instead of `C`
+//! compares, which cost four instructions each on a Cortex-M4F. Power-of-two scaling
+//! is exact, so the choice changes no result.)
 //!
 //! - Evidence: a place's factor is `φ = u ⊙ x^γ` with `x = α / 2^E` (`E` the binary
-//!   exponent of the row's largest entry: exact), or for a labelled place only the
-//!   label's entry (`x_l = α_l / 2^{E_l}`). Entries of `x` below `2^⌈TINY_EXP/γ⌉` are
-//!   flushed to 0 before the power, so every nonzero `x^γ` is at least `2^TINY_EXP`
-//!   and every nonzero entry of `φ` at least `2^(TINY_EXP - 20)`.
+//!   exponent of the row's sum, or of its largest entry if the sum overflows: exact),
+//!   or for a labelled place only the label's entry (`x_l = α_l / 2^{E_l}`). On SIMD
+//!   hosts entries of `x` below `2^⌈TINY_EXP/γ⌉` are flushed to 0 before the power, so
+//!   every nonzero `x^γ` is at least `2^TINY_EXP`. `φ`'s largest entry is at least
+//!   `2^-20 · C^-γ ≥ 2^-84`.
 //! - Messages `ψ·b` need no flush: `ψ > 0` with a largest/smallest ratio of at most
-//!   `1e6 < 2^20` (checked by the model), so every entry of a normalised message is at
-//!   least `2^-20`.
-//! - Beliefs (products of `φ` and messages) are renormalised after every factor and
-//!   entries below `2^TINY_EXP` (`2^-80` in `f32`, `2^-600` in `f64`) are flushed to 0.
-//!   Nothing ever becomes subnormal: the smallest nonzero product formed is
-//!   `2^TINY_EXP · 2^-20 · 2^-20`, far above the normal range's end.
+//!   `1e6 < 2^20` (checked by the model), so every entry of a message is at least
+//!   `2^-20` of its largest, `2^-28` once normalised.
+//! - Beliefs (products of `φ` and messages) are renormalised after every factor, so
+//!   the largest entry of every product formed is at least `2^-84 · 2^-28`, inside
+//!   the normal range. On SIMD hosts entries below `2^TINY_EXP` (`2^-80` in `f32`,
+//!   `2^-600` in `f64`) are flushed to 0 after every factor: nothing ever becomes
+//!   subnormal (an x86 CPU takes ~100 cycles per subnormal operand). Scalar code
+//!   (microcontrollers) does not flush: `C` compares per row cost more there than the
+//!   rest of the row's work, and a Cortex-M FPU handles subnormals in hardware at
+//!   full speed (or flushes them to zero when the firmware sets `FPSCR.FZ`; soft-float
+//!   is exact either way). A tiny entry then keeps gradual underflow's absolute error
+//!   of at most `2^-150`, which is a flush to `2^-149` at worst.
 //!
-//! A flushed entry `b(c)` of a belief at place `v` changes the forest's value `Σ_c
-//! b(c)·R(c)` by at most `C · 2^TINY_EXP · 2^20` relatively (the rest of the forest,
-//! `R`, varies by at most the potential ratio across classes), so a whole pass over
-//! `n` places changes by at most `4·n·C·2^(TINY_EXP+20)` relatively (`≤ 2^-39` in `f32`
-//! for the largest maps the generator accepts, `n ≤ 65,535`, `C ≤ 256`): far below
-//! one rounding. Exact zeros (evidence of probability zero) stay exact.
+//! A flushed (or underflowed) entry `b(c)` of a belief at place `v` changes the
+//! forest's value `Σ_c b(c)·R(c)` by at most `C · 2^TINY_EXP · 2^20` relatively (the
+//! belief's largest entry is at least `1/C`, and the rest of the forest, `R`, varies by
+//! at most the potential ratio across classes), so a whole pass over `n` places
+//! changes by at most `4·n·C²·2^(TINY_EXP+20)` relatively (`≤ 2^-26` in `f32` for the
+//! largest maps the generator accepts, `n ≤ 65,535`, `C ≤ 256`, and `≤ 2^-41` for
+//! `C = 10` and `n ≤ 1,000`): below one rounding. Exact zeros (evidence of probability
+//! zero) stay exact.
 //!
 //! # Passes
 //!
@@ -100,11 +112,21 @@ impl<T> Forest<T> {
 /// A tree mixture compiled for one map: potentials, evidence exponent, mixing and the
 /// forests (see the module docs).
 pub struct TreeModel<V: Lanes, const C: usize, const K: usize> {
-    /// `ψ` by columns: `psi[j]` holds `ψ(·, j)` (classes in lanes, padding lanes 0);
-    /// largest entry 1.
-    pub psi: [[V; K]; C],
+    /// The upward messages' matrix by columns (classes in lanes, padding lanes 0):
+    /// `ψ·diag(u)` when [`TreeModel::folded`] (`psi_up[j]` holds `ψ(·, j) u(j)`, each
+    /// product rounded once), else `ψ`; largest entry at most 1.
+    pub psi_up: [[V; K]; C],
+    /// The downward messages' matrix by columns: `diag(u)·ψ` when folded
+    /// (`psi_down[j]` holds `u(·) ψ(·, j)`), else `ψ`.
+    pub psi_down: [[V; K]; C],
     /// The unary potential `u` (padding lanes 0); largest entry 1.
     pub unary: [V; K],
+    /// Where `u` enters. `false` (SIMD hosts): in every place's evidence factor `φ = u ⊙
+    /// x^γ`, so the flush rule compares entries weighted by `u`. `true` (scalar code,
+    /// which does not flush): `φ = x^γ`, and `u` is folded into the matrix of the
+    /// message that leaves a place (upward) or enters it (downward), so only a root's
+    /// belief is multiplied by `u`: `C` multiplies and loads fewer per evidence factor.
+    pub folded: bool,
     /// 1 in padding lanes, 0 in class lanes (keeps divisions finite in padding).
     pub pad: [V; K],
     /// The evidence exponent `γ` (rows enter as `α^γ`).
@@ -114,6 +136,24 @@ pub struct TreeModel<V: Lanes, const C: usize, const K: usize> {
     pub average: bool,
     /// The forests, in mixture order.
     pub forests: &'static [Forest<V::Scalar>],
+    /// Which entry points compute every place's `φ` once into a stack table.
+    pub cache: FactorCache,
+}
+
+/// Which entry points first compute the evidence factor `φ` of every place once into a
+/// table on the stack (`places · (C + 1)` scalars), shared by every forest's passes,
+/// instead of computing it in each pass (a `T`-forest mixture computes each `φ` `T`
+/// times in a value pass, `2T` times in `marginals`). The generator sets a flag when
+/// the entry point's stack bound with the table fits the stack budget (always on SIMD
+/// hosts); results are the same either way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FactorCache {
+    /// `log_likelihood`, `labelled_log_likelihood` and `mpe`.
+    pub values: bool,
+    /// The stateless `marginals`.
+    pub marginals: bool,
+    /// The streaming state's `marginals`.
+    pub state: bool,
 }
 
 /// `a ⊙= b`.
@@ -158,36 +198,50 @@ pub(crate) fn argmax<V: Lanes, const K: usize>(a: &[V; K]) -> u16 {
     arg
 }
 
-/// Scales `a` by a power of two so that its largest entry lies in `[1, 2)`; returns
-/// the exponent `e` (the row before = the row after `· 2^e`). A zero (or NaN) row is
-/// left as it is (`e = 0`).
+/// Scales `a` by a power of two so that the sum of its entries lies in `[1, 2)` (so its
+/// largest entry lies in `[1/C, 2)`); returns the exponent `e` (the row before = the
+/// row after `· 2^e`). A zero (or NaN) row is left as it is (`e = 0`). The row's sum
+/// must lie in `[2^(MIN_EXP+1), 2^-MIN_EXP)` (every row the passes normalise does: see
+/// the module docs).
 #[inline(always)]
 pub(crate) fn norm<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
-    let m = hmax(a);
-    if !above(m, V::Scalar::ZERO) {
+    let s = hsum(a);
+    if !above(s, V::Scalar::ZERO) {
         return 0;
     }
-    let (_, e) = m.split();
-    scale(a, V::Scalar::pow2(-e));
+    let (k, e) = s.normal_scale();
+    scale(a, k);
     e
 }
 
-/// [`norm`], and entries below `2^TINY_EXP` (after scaling) flushed to zero (see the
-/// module docs), in one sweep.
+/// [`norm`], and on SIMD hosts entries below `2^TINY_EXP` (after scaling) flushed to
+/// zero in the same sweep (see the module docs: scalar code leaves tiny entries to the
+/// FPU, whose subnormal arithmetic costs nothing extra on microcontrollers).
 #[inline(always)]
 pub(crate) fn norm_flush<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
-    let m = hmax(a);
-    if !above(m, V::Scalar::ZERO) {
+    if V::WIDTH == 1 {
+        return norm(a);
+    }
+    let s = hsum(a);
+    if !above(s, V::Scalar::ZERO) {
         return 0;
     }
-    let (_, e) = m.split();
-    let (s, t) = (
-        V::splat(V::Scalar::pow2(-e)),
-        V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP)),
-    );
+    let (k, e) = s.normal_scale();
+    let (k, t) = (V::splat(k), V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP)));
     for x in a.iter_mut() {
-        *x = (*x * s).flush(t);
+        *x = (*x * k).flush(t);
     }
+    e
+}
+
+/// `a ⊙= b`, then [`norm_flush`]: the product is formed in registers and `a` written
+/// once.
+#[inline(always)]
+pub(crate) fn mul_norm<V: Lanes, const K: usize>(a: &mut [V; K], b: &[V; K]) -> i32 {
+    let mut p = *a;
+    mul(&mut p, b);
+    let e = norm_flush(&mut p);
+    *a = p;
     e
 }
 
@@ -309,8 +363,9 @@ fn scale_pow2<V: Lanes, const K: usize>(x: &mut [V; K], e: i32) {
 
 /// The evidence factor `φ` of a place (see the module docs) and its exponent: the
 /// exact factor is `φ · 2^e`. Not normalised: its largest entry lies in
-/// `[2^-20, 2^γ)` (`x`'s in `[1, 2)`, `u`'s in `[2^-20, 1]`), every nonzero entry is at
-/// least `2^(TINY_EXP - 20)`. `label < C` keeps only that class.
+/// `[2^-20 · C^-γ, 2^γ)` (`x`'s in `[1/C, 2)`, `u`'s in `[2^-20, 1]`); on SIMD hosts
+/// every nonzero entry is at least `2^(TINY_EXP - 20)`. `label < C` keeps only that
+/// class.
 #[inline(always)]
 pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
     m: &TreeModel<V, C, K>,
@@ -328,19 +383,43 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
         (pack::<V, C, K>(&one), e)
     } else {
         let mut x = pack::<V, C, K>(row);
-        let (_, e) = hmax(&x).split();
-        scale_pow2(&mut x, e);
-        let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP / m.gamma.max(1) as i32));
-        for v in x.iter_mut() {
-            *v = v.flush(t);
+        // The sum's exponent (the largest entry's if the sum overflows).
+        let s = hsum(&x);
+        let e = if s.scalable() {
+            let (k, e) = s.normal_scale();
+            scale(&mut x, k);
+            e
+        } else {
+            let (_, e) = if s.is_finite() { s } else { hmax(&x) }.split();
+            scale_pow2(&mut x, e);
+            e
+        };
+        if V::WIDTH > 1 {
+            let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP / m.gamma.max(1) as i32));
+            for v in x.iter_mut() {
+                *v = v.flush(t);
+            }
         }
         (x, e)
     };
+    // `x^γ`, unrolled for the usual exponents (no loop-carried copy of `x`).
     let base = x;
-    for _ in 1..m.gamma {
-        mul(&mut x, &base);
+    match m.gamma {
+        0 | 1 => {}
+        2 => mul(&mut x, &base),
+        3 => {
+            mul(&mut x, &base);
+            mul(&mut x, &base);
+        }
+        g => {
+            for _ in 1..g {
+                mul(&mut x, &base);
+            }
+        }
     }
-    mul(&mut x, &m.unary);
+    if !m.folded {
+        mul(&mut x, &m.unary);
+    }
     (x, (m.gamma as i32).wrapping_mul(e))
 }
 
@@ -370,28 +449,24 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize> Factors<V, K>
     }
 }
 
-/// `φ` of every place computed once (SIMD hosts: the passes of all forests share it).
+/// `φ` of every place computed once, with its exponent (see [`FactorCache`]).
 pub(crate) struct Cached<'a, V: Lanes, const K: usize, const N: usize> {
-    pub phi: &'a [[V; K]; N],
-    pub exp: &'a [i32; N],
+    pub table: &'a [([V; K], i32); N],
 }
 
 impl<V: Lanes, const K: usize, const N: usize> Factors<V, K> for Cached<'_, V, K, N> {
     #[inline(always)]
     fn factor(&self, v: usize) -> ([V; K], i32) {
-        match (self.phi.get(v), self.exp.get(v)) {
-            (Some(&p), Some(&x)) => (p, x),
-            _ => ([V::ZERO; K], 0),
-        }
+        self.table.get(v).copied().unwrap_or(([V::ZERO; K], 0))
     }
 }
 
 impl<V: Lanes, const C: usize, const K: usize, const N: usize> Rows<'_, V, C, K, N> {
-    /// Every place's `φ` into `phi` and `exp` (for [`Cached`]).
+    /// Every place's `φ` and exponent into `table` (for [`Cached`]).
     #[inline(never)]
-    pub fn fill(&self, phi: &mut [[V; K]; N], exp: &mut [i32; N]) {
-        for (v, (p, x)) in phi.iter_mut().zip(exp.iter_mut()).enumerate() {
-            (*p, *x) = self.factor(v);
+    pub fn fill(&self, table: &mut [([V; K], i32); N]) {
+        for (v, t) in table.iter_mut().enumerate() {
+            *t = self.factor(v);
         }
     }
 }
@@ -408,8 +483,7 @@ pub(crate) fn belief<V: Lanes, const K: usize, const N: usize>(
     let (mut b, mut k) = src.factor(v);
     for &c in f.kids_of(v) {
         if let Some(mc) = msgs.get(usize::from(c)) {
-            mul(&mut b, mc);
-            k = k.wrapping_add(norm_flush(&mut b));
+            k = k.wrapping_add(mul_norm(&mut b, mc));
         }
     }
     (b, k)

@@ -1,15 +1,33 @@
 //! The stateless passes of generated tree-mixture code: log-likelihood (labelled or
-//! not), marginals and MPE (see the module docs of `tree`). On SIMD hosts
-//! (`V::WIDTH > 1`) every entry point first computes the evidence factor `φ` of every
+//! not), marginals and MPE (see the module docs of `tree`). Where the generator chose
+//! to ([`FactorCache`]: always on SIMD hosts, on microcontrollers when the table fits
+//! the stack budget) an entry point first computes the evidence factor `φ` of every
 //! place once ([`Cached`]: `O(places · C)` scratch), which every forest's passes then
-//! share; on microcontrollers each pass computes `φ` where it needs it ([`Rows`]).
+//! share; otherwise each pass computes `φ` where it needs it ([`Rows`]).
 
 use super::super::{Acc, Lanes, Real, above, best, mix};
 use super::{
     Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec,
-    mul, norm, norm_flush,
+    mul, mul_norm, norm,
 };
 use crate::EvidenceError;
+
+impl<V: Lanes, const C: usize, const K: usize> TreeModel<V, C, K> {
+    /// `u` where a root's belief still needs it (folded models), else `None`.
+    #[inline(always)]
+    pub(crate) fn root_unary(&self) -> Option<&[V; K]> {
+        self.folded.then_some(&self.unary)
+    }
+
+    /// A root's belief `b` with `u` multiplied in where the evidence factor left it out.
+    #[inline(always)]
+    pub(crate) fn root_belief(&self, mut b: [V; K]) -> [V; K] {
+        if let Some(u) = self.root_unary() {
+            mul(&mut b, u);
+        }
+        b
+    }
+}
 
 /// `acc · 2^(k - z_exp) · e^(-z_rem)`: a forest's value over its `Z_t`.
 #[inline(always)]
@@ -19,36 +37,35 @@ pub(crate) fn over_z<T: Real>(mut acc: Acc<T>, k: i32, f: &Forest<T>) -> Acc<T> 
     acc
 }
 
-/// Runs `body` with the factor source of the target: [`Cached`] (every `φ` computed
-/// once, on the stack) on SIMD hosts, [`Rows`] on microcontrollers.
+/// Runs `body` with the factor source the generator chose for the entry point:
+/// [`Cached`] (`cache`: every `φ` computed once into a table on the stack, `O(places ·
+/// C)` bytes, which every forest's passes then share) or [`Rows`] (each pass computes
+/// `φ` where it needs it: no table).
 #[inline(always)]
 pub(crate) fn with_factors<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
     m: &TreeModel<V, C, K>,
     e: &[[V::Scalar; C]; N],
     labels: Option<&[u16; N]>,
+    cache: bool,
     body: impl FnOnce(&dyn Factors<V, K>) -> R,
 ) -> R {
     let rows = Rows { m, e, labels };
-    if V::WIDTH > 1 {
+    if cache {
         cached(&rows, body)
     } else {
         body(&rows)
     }
 }
 
-/// [`with_factors`] on SIMD hosts (its own frame holds the cache).
+/// [`with_factors`] with the table (its own frame holds it).
 #[inline(never)]
 fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
     rows: &Rows<'_, V, C, K, N>,
     body: impl FnOnce(&dyn Factors<V, K>) -> R,
 ) -> R {
-    let mut phi = [[V::ZERO; K]; N];
-    let mut exp = [0i32; N];
-    rows.fill(&mut phi, &mut exp);
-    body(&Cached {
-        phi: &phi,
-        exp: &exp,
-    })
+    let mut table = [([V::ZERO; K], 0i32); N];
+    rows.fill(&mut table);
+    body(&Cached { table: &table })
 }
 
 /// One post-order sweep of forest `f` with a stack of `H` rows (`H` > the forest's
@@ -61,6 +78,7 @@ fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
 fn sweep<V: Lanes, const K: usize, const H: usize>(
     src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
+    unary: Option<&[V; K]>,
     mut message: impl FnMut(usize, &[V; K]) -> [V; K],
     mut root: impl FnMut(usize, &[V; K]),
 ) -> i32 {
@@ -82,18 +100,26 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
             _ => factor(v, &mut k),
         };
         if d == 0 {
-            root(v, &b);
+            let mut r = b;
+            if let Some(u) = unary {
+                mul(&mut r, u);
+            }
+            root(v, &r);
             continue;
         }
         let mut msg = message(v, &b);
         k = k.wrapping_add(norm(&mut msg));
         if let (Some(h), Some(s)) = (has.get_mut(d), slots.get_mut(d)) {
-            if !*h {
-                *s = factor(usize::from(f.parent_of(v)), &mut k);
+            // The parent's row so far (its `φ` for its first child), times the message,
+            // written back once.
+            let mut p = if *h {
+                *s
+            } else {
                 *h = true;
-            }
-            mul(s, &msg);
-            k = k.wrapping_add(norm_flush(s));
+                factor(usize::from(f.parent_of(v)), &mut k)
+            };
+            k = k.wrapping_add(mul_norm(&mut p, &msg));
+            *s = p;
         }
     }
     k
@@ -112,11 +138,12 @@ fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
     let k = sweep::<V, K, H>(
         src,
         f,
+        m.root_unary(),
         |_, b| {
             if max {
-                maxvec(&m.psi, b)
+                maxvec(&m.psi_up, b)
             } else {
-                matvec(&m.psi, b)
+                matvec(&m.psi_up, b)
             }
         },
         |_, b| acc.mul(if max { hmax(b) } else { hsum(b) }),
@@ -152,7 +179,7 @@ pub fn tree_log_likelihood<
     e: &[[V::Scalar; C]; N],
     labels: &[u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
-    let accs = with_factors(m, e, Some(labels), |src| {
+    let accs = with_factors(m, e, Some(labels), m.cache.values, |src| {
         values::<V, C, K, H, T>(m, src, false)
     });
     match mix(&accs) {
@@ -179,10 +206,11 @@ pub(crate) fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usi
         let v = usize::from(v);
         let (b, eb) = belief(src, f, msgs, v);
         let (out, ev) = if d == 0 {
-            acc.mul(hsum(&b));
-            (b, eb)
+            let r = m.root_belief(b);
+            acc.mul(hsum(&r));
+            (r, eb)
         } else {
-            let mut msg = matvec(&m.psi, &b);
+            let mut msg = matvec(&m.psi_up, &b);
             let em = norm(&mut msg);
             (msg, eb.wrapping_add(em))
         };
@@ -219,9 +247,9 @@ fn without<V: Lanes, const C: usize, const K: usize>(
 }
 
 /// `full(v) = belief(v) ⊙ ψ·(full(parent) / m_v)`, normalised. The downward message is
-/// not normalised: `full(parent)`'s largest entry is in `[1, 2)` and `m_v`'s entries in
-/// `[2^-20, 2)`, so its entries lie in `[2^-21, C·2^21)` and every nonzero product with
-/// the belief stays far inside the normal range.
+/// not normalised: `full(parent)`'s entries sum to `[1, 2)` and `m_v`'s entries lie in
+/// `[2^-28, 2)` (see the module docs), so its entries lie in `[2^-29, C·2^29)` and the
+/// largest entry of its product with the belief stays far inside the normal range.
 #[inline(always)]
 pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usize>(
     m: &TreeModel<V, C, K>,
@@ -234,10 +262,9 @@ pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usiz
     let Some(mv) = msgs.get(v) else {
         return [V::ZERO; K];
     };
-    let down = matvec(&m.psi, &without::<V, C, K>(parent_full, mv, &m.pad));
+    let down = matvec(&m.psi_down, &without::<V, C, K>(parent_full, mv, &m.pad));
     let (mut b, _) = belief(src, f, msgs, v);
-    mul(&mut b, &down);
-    norm_flush(&mut b);
+    mul_norm(&mut b, &down);
     b
 }
 
@@ -326,7 +353,7 @@ pub fn tree_marginals<
     out: &mut [[V::Scalar; C]; N],
 ) -> Result<V::Scalar, EvidenceError> {
     *out = [[V::Scalar::ZERO; C]; N];
-    let accs = with_factors(m, e, None, |src| {
+    let accs = with_factors(m, e, None, m.cache.marginals, |src| {
         marginals_from::<V, C, K, N, H, T>(m, src, out)
     });
     let Some((l, _)) = mix(&accs).filter(|(l, _)| *l > V::Scalar::NEG_INFINITY) else {
@@ -400,8 +427,9 @@ fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H:
     sweep::<V, K, H>(
         src,
         f,
+        m.root_unary(),
         |v, b| match arg.get_mut(v) {
-            Some(a) => argvec(&m.psi, b, a),
+            Some(a) => argvec(&m.psi_up, b, a),
             None => [V::ZERO; K],
         },
         |v, b| {
@@ -442,7 +470,7 @@ pub fn tree_mpe<
     e: &[[V::Scalar; C]; N],
     labels: &mut [u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
-    with_factors(m, e, None, |src| {
+    with_factors(m, e, None, m.cache.values, |src| {
         let accs = values::<V, C, K, H, T>(m, src, true);
         let (Some(t), Some(f)) = (best(&accs), best(&accs).and_then(|t| m.forests.get(t))) else {
             return Err(EvidenceError::ZeroLikelihood);

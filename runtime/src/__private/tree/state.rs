@@ -144,9 +144,9 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
                 let parent = f.parent_of(a);
                 let root = usize::from(parent) >= N;
                 let (out, ev) = if root {
-                    (b, eb)
+                    (m.root_belief(b), eb)
                 } else {
-                    let mut mm = matvec(&m.psi, &b);
+                    let mut mm = matvec(&m.psi_up, &b);
                     let em = norm(&mut mm);
                     (mm, eb.wrapping_add(em))
                 };
@@ -309,7 +309,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     ) -> Result<V::Scalar, EvidenceError> {
         let (l, w) = self.mixed(m)?;
         *out = [[V::Scalar::ZERO; C]; N];
-        with_factors(m, &self.rows, None, |src| {
+        with_factors(m, &self.rows, None, m.cache.state, |src| {
             for ((f, msgs), &wt) in m.forests.iter().zip(&self.msg).zip(&w) {
                 tree_downward::<V, C, K, N, H>(m, src, f, msgs, wt, out);
             }
