@@ -94,11 +94,13 @@ fn cold_maps_match_tree_instance_and_interpreter() {
     } else {
         paths.extend(COLD_MAPS.iter().map(|m| data.join(m)));
     }
+    // `FIXED`: the no-FPU targets' form (`SoftF32` rows), bit-identical to `F32_SCALAR`.
     let every = [
         Variant::F32,
         Variant::F64,
         Variant::F32_SCALAR,
         Variant::F64_SCALAR,
+        Variant::FIXED,
     ];
     let mut cases = vec![floor_case(every.to_vec(), 300)];
     for (i, path) in paths.iter().enumerate() {

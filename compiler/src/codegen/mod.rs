@@ -102,8 +102,9 @@ pub enum Arithmetic {
     /// bound is small enough (values within `2^-13` of themselves, local posteriors
     /// within `2^-10`), else recomputed in `f32` (see the generator's
     /// `fixed` module). The rest of the module (evidence scaling, decomposition mixing,
-    /// MPE) stays `f32`. Needs [`Precision::F32`] and [`Vectorisation::Scalar`];
-    /// GraphSPN modules only (a tree mixture always computes in floats).
+    /// MPE) stays `f32`. Needs [`Precision::F32`] and [`Vectorisation::Scalar`]. A
+    /// tree mixture computes in `f32` with the runtime's `SoftF32` rows: integer fast
+    /// paths for its non-negative normal values, bit-identical to `f32` arithmetic.
     Fixed,
 }
 

@@ -274,6 +274,7 @@ mod engine;
 mod fixed;
 mod fusion;
 mod lanes;
+mod soft_float;
 mod tree;
 
 pub use blocks::*;
@@ -281,6 +282,7 @@ pub use engine::*;
 pub use fixed::*;
 pub use fusion::{Fused, ln_shift};
 pub use lanes::*;
+pub use soft_float::SoftF32;
 pub use tree::*;
 
 /// The scalar types of generated code (`f32`, `f64`).

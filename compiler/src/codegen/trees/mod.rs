@@ -116,6 +116,7 @@ fn items(model: &TreeMixture, cx: &Context) -> TokenStream {
     let rt = rt();
     let t = cx.l.ty();
     let v_type = match (cx.width, cx.l.is_f32()) {
+        (1, _) if cx.soft => quote!(#rt::SoftF32),
         (1, _) => quote!(#t),
         (_, true) => quote!(#rt::Lanes32),
         (_, false) => quote!(#rt::Lanes64),
@@ -195,6 +196,9 @@ fn row(values: &[f64], pad: f64, cx: &Context) -> TokenStream {
     let scalars: Vec<TokenStream> = (0..lanes)
         .map(|i| cx.l.num(values.get(i).copied().unwrap_or(pad)))
         .collect();
+    if cx.soft {
+        return array(scalars.iter().map(|x| quote!(#rt::SoftF32(#x))));
+    }
     if cx.width == 1 {
         return array(scalars);
     }
@@ -259,6 +263,7 @@ mod tests {
             k: 3usize.div_ceil(width),
             h: 2,
             scalar: 4,
+            soft: false,
         };
         let s = row(&[0.5, 0.25, 1.0], 0.0, &cx_of(1)).to_string();
         assert_eq!(s, "[0.5f32 , 0.25f32 , 1.0f32]");

@@ -7,7 +7,7 @@ use crate::treemix::{NO_PARENT, RootedForest, SpanningTrees, TreeMixture};
 
 use super::super::emit::Lit;
 use super::super::surface::{CodeReport, fused_bytes};
-use super::super::{CodegenError, CodegenOptions, Precision, Vectorisation};
+use super::super::{Arithmetic, CodegenError, CodegenOptions, Precision, Vectorisation};
 
 /// Sizes and types every emitter of a tree-mixture module needs.
 pub(super) struct Context {
@@ -27,6 +27,9 @@ pub(super) struct Context {
     pub h: usize,
     /// Bytes of one scalar.
     pub scalar: usize,
+    /// Scalar `f32` code for a target without an FPU: rows of `SoftF32` (integer fast
+    /// paths, bit-identical to `f32`) instead of `f32`.
+    pub soft: bool,
 }
 
 impl Context {
@@ -76,6 +79,9 @@ impl Context {
             width,
             k: c.div_ceil(width),
             h,
+            soft: options.arithmetic == Arithmetic::Fixed
+                && width == 1
+                && options.precision == Precision::F32,
             scalar: match options.precision {
                 Precision::F32 => 4,
                 Precision::F64 => 8,

@@ -332,7 +332,7 @@ pub(crate) fn argvec<V: Lanes, const C: usize, const K: usize>(
 
 /// The lanes of `row` packed into a row of vectors (padding lanes 0).
 #[inline(always)]
-fn pack<V: Lanes, const C: usize, const K: usize>(row: &[V::Scalar; C]) -> [V; K] {
+pub(crate) fn pack<V: Lanes, const C: usize, const K: usize>(row: &[V::Scalar; C]) -> [V; K] {
     let mut out = [V::ZERO; K];
     for (k, o) in out.iter_mut().enumerate() {
         let mut a = [V::Scalar::ZERO; 8];

@@ -8,7 +8,7 @@
 use super::super::{Acc, Lanes, Real, above, best, mix};
 use super::{
     Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec,
-    mul, mul_norm, norm,
+    mul, mul_norm, norm, pack,
 };
 use crate::EvidenceError;
 
@@ -268,7 +268,8 @@ pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usiz
     b
 }
 
-/// `out[v] += w · full / Σ full`.
+/// `out[v] += w · full / Σ full`, in the lane type's arithmetic (the same operations
+/// per class as on scalars).
 #[inline(always)]
 pub(crate) fn add_marginal<V: Lanes, const K: usize, const C: usize>(
     out: &mut [V::Scalar; C],
@@ -279,9 +280,13 @@ pub(crate) fn add_marginal<V: Lanes, const K: usize, const C: usize>(
     if !above(s, V::Scalar::ZERO) {
         return;
     }
-    let k = w / s;
-    for (o, &x) in out.iter_mut().zip(full.iter().flat_map(|v| v.lanes())) {
-        *o += k * x;
+    let k = V::splat(w / s);
+    let mut acc = pack::<V, C, K>(out);
+    for (a, &x) in acc.iter_mut().zip(full) {
+        *a += x * k;
+    }
+    for (o, &x) in out.iter_mut().zip(acc.iter().flat_map(|v| v.lanes())) {
+        *o = x;
     }
 }
 

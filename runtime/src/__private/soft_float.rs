@@ -1,0 +1,353 @@
+//! [`SoftF32`]: an `f32` lane for targets without an FPU whose multiply, add and
+//! compares take integer fast paths for the values tree-mixture passes compute —
+//! non-negative, finite, normal or zero — and give exactly the IEEE-754 results
+//! (round to nearest, ties to even) of `f32` arithmetic. Every other operand (negative,
+//! subnormal, infinite, NaN) and every result outside the normal range goes through
+//! the target's `f32` operation (a soft-float call), so a `SoftF32` computation is
+//! bit-identical to the same computation in `f32` on every input.
+//!
+//! Why: without an FPU every `f32` operation is a call into the compiler's soft-float
+//! routines, which handle signs, subnormals, infinities and NaNs on every operation
+//! (about 40–70 instructions on RV32IMAC); the fast paths here need a 32×32→64-bit
+//! multiply or one alignment shift and a rounding step. Division keeps the soft-float
+//! call (a few per place, against `C²` multiply-adds).
+
+use core::ops::{Add, AddAssign, Div, Mul};
+
+use super::lanes::Lanes;
+
+/// An `f32` whose arithmetic is done in integers where the operands allow it (see the
+/// module docs); bit-identical to `f32` arithmetic.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[repr(transparent)]
+pub struct SoftF32(pub f32);
+
+/// Mantissa field of an `f32`.
+const MANT: u32 = 0x007f_ffff;
+/// The implicit leading bit of a normal `f32`'s significand.
+const IMPLICIT: u32 = 0x0080_0000;
+/// Bits of `+inf`: every finite non-negative `f32` has smaller bits.
+const INF: u32 = 0x7f80_0000;
+
+/// Whether the biased exponent field `e` (sign bit included above it) is that of a
+/// positive normal value.
+#[inline(always)]
+fn normal(e: u32) -> bool {
+    e.wrapping_sub(1) < 254
+}
+
+/// `m + up` (a 24-bit significand with its leading bit, rounded up or not) at biased
+/// exponent `e`, when the result is a normal finite `f32` (a carry out of the
+/// significand raises the exponent).
+#[inline(always)]
+fn pack(e: i32, m: u32, up: bool) -> Option<u32> {
+    let bits = (((e - 1) as u32) << 23).wrapping_add(m + u32::from(up));
+    (e >= 1 && bits < INF).then_some(bits)
+}
+
+/// The bits of `a · b` for non-negative finite operands with a normal (or zero)
+/// result, rounded to nearest even; `None` otherwise.
+#[inline(always)]
+pub fn mul_bits(a: u32, b: u32) -> Option<u32> {
+    let (ea, eb) = (a >> 23, b >> 23);
+    if !normal(ea) || !normal(eb) {
+        // A zero times a finite non-negative value is +0; the rest is not ours.
+        return ((a == 0 && b < INF) || (b == 0 && a < INF)).then_some(0);
+    }
+    // Significands at the top of 32-bit words: the product lies in [2^62, 2^64).
+    let p = u64::from((a & MANT | IMPLICIT) << 8) * u64::from((b & MANT | IMPLICIT) << 8);
+    let (mut hi, mut lo) = ((p >> 32) as u32, p as u32);
+    let top = hi >> 31;
+    if top == 0 {
+        hi = (hi << 1) | (lo >> 31);
+        lo <<= 1;
+    }
+    // hi: 24 significand bits over 8 rounding bits; lo: what lies below.
+    let (m, r) = (hi >> 8, hi & 0xff);
+    let up = r > 0x80 || (r == 0x80 && (lo != 0 || m & 1 == 1));
+    pack(ea as i32 + eb as i32 - 127 + top as i32, m, up)
+}
+
+/// The bits of `a + b` for non-negative finite operands, each normal or zero, with a
+/// finite result, rounded to nearest even; `None` otherwise.
+#[inline(always)]
+pub fn add_bits(a: u32, b: u32) -> Option<u32> {
+    // Non-negative values are ordered as their bits: `a` is the larger.
+    let (a, b) = if a < b { (b, a) } else { (a, b) };
+    let (ea, eb) = (a >> 23, b >> 23);
+    if b == 0 {
+        return (a < INF).then_some(a);
+    }
+    if !normal(ea) || !normal(eb) {
+        return None;
+    }
+    let d = ea - eb;
+    if d >= 25 {
+        // `b` is below half an ulp of `a`.
+        return Some(a);
+    }
+    // Significands over 7 rounding bits; `b` aligned to `a`, with a sticky bit for
+    // what the shift drops.
+    let mb = (b & MANT | IMPLICIT) << 7;
+    let mut sticky = mb & ((1u32 << d) - 1) != 0;
+    let mut s = ((a & MANT | IMPLICIT) << 7) + (mb >> d);
+    let mut e = ea as i32;
+    if s >> 31 != 0 {
+        sticky |= s & 1 != 0;
+        s >>= 1;
+        e += 1;
+    }
+    let (m, r) = (s >> 7, s & 0x7f);
+    let up = r > 0x40 || (r == 0x40 && (sticky || m & 1 == 1));
+    pack(e, m, up)
+}
+
+/// Whether both are non-negative (sign bits clear), so their bits order them.
+#[inline(always)]
+fn both_plain(a: u32, b: u32) -> bool {
+    (a | b) >> 31 == 0
+}
+
+/// `a > b` as `f32` compares it (integer compare for non-negative operands; NaN
+/// operands, whose bits are above `+inf`, go through the float compare).
+#[inline(always)]
+fn greater(a: f32, b: f32) -> bool {
+    let (x, y) = (a.to_bits(), b.to_bits());
+    if both_plain(x, y) && x <= INF && y <= INF {
+        x > y
+    } else {
+        slow_greater(a, b)
+    }
+}
+
+/// `a > b` by the target's float compare (see [`slow_mul`]).
+#[cold]
+#[inline(never)]
+fn slow_greater(a: f32, b: f32) -> bool {
+    a > b
+}
+
+/// `a · b` by the target's `f32` operation. Out of line and cold: inlined, the
+/// compiler treats a float multiply as cheap and speculates it ahead of the fast
+/// path's branch — a soft-float call on every operation.
+#[cold]
+#[inline(never)]
+fn slow_mul(a: f32, b: f32) -> f32 {
+    a * b
+}
+
+/// `a / b` by the target's `f32` operation (see [`slow_mul`]).
+#[inline(never)]
+fn slow_div(a: f32, b: f32) -> f32 {
+    a / b
+}
+
+/// `a + b` by the target's `f32` operation (see [`slow_mul`]).
+#[cold]
+#[inline(never)]
+fn slow_add(a: f32, b: f32) -> f32 {
+    a + b
+}
+
+impl Mul for SoftF32 {
+    type Output = SoftF32;
+    #[inline(always)]
+    fn mul(self, o: SoftF32) -> SoftF32 {
+        match mul_bits(self.0.to_bits(), o.0.to_bits()) {
+            Some(b) => SoftF32(f32::from_bits(b)),
+            None => SoftF32(slow_mul(self.0, o.0)),
+        }
+    }
+}
+
+impl Add for SoftF32 {
+    type Output = SoftF32;
+    #[inline(always)]
+    fn add(self, o: SoftF32) -> SoftF32 {
+        match add_bits(self.0.to_bits(), o.0.to_bits()) {
+            Some(b) => SoftF32(f32::from_bits(b)),
+            None => SoftF32(slow_add(self.0, o.0)),
+        }
+    }
+}
+
+impl AddAssign for SoftF32 {
+    #[inline(always)]
+    fn add_assign(&mut self, o: SoftF32) {
+        *self = *self + o;
+    }
+}
+
+impl Div for SoftF32 {
+    type Output = SoftF32;
+    #[inline(always)]
+    fn div(self, o: SoftF32) -> SoftF32 {
+        SoftF32(slow_div(self.0, o.0))
+    }
+}
+
+/// One `f32` per "vector", as the scalar `f32` lanes, with the integer fast paths.
+impl Lanes for SoftF32 {
+    type Scalar = f32;
+    const ZERO: Self = SoftF32(0.0);
+    const WIDTH: usize = 1;
+    #[inline(always)]
+    fn lanes(&self) -> &[f32] {
+        core::slice::from_ref(&self.0)
+    }
+    #[inline(always)]
+    fn flush(self, t: Self) -> Self {
+        if greater(t.0, self.0) {
+            Self::ZERO
+        } else {
+            self
+        }
+    }
+    #[inline(always)]
+    fn hmax(self) -> f32 {
+        self.0
+    }
+    #[inline(always)]
+    fn hsum(self) -> f32 {
+        self.0
+    }
+    #[inline(always)]
+    fn splat(s: f32) -> Self {
+        SoftF32(s)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        self * a + b
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        if greater(o.0, self.0) { o } else { self }
+    }
+    #[inline(always)]
+    fn arg_max(best: &mut Self, arg: &mut Self, p: Self, code: Self) {
+        if greater(p.0, best.0) {
+            *best = p;
+            *arg = code;
+        }
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> f32 {
+        if l == 0 { self.0 } else { 0.0 }
+    }
+    #[inline(always)]
+    fn set_lane(&mut self, l: usize, v: f32) {
+        if l == 0 {
+            self.0 = v;
+        }
+    }
+    #[inline(always)]
+    fn from_lanes<const L: usize>(a: &[f32; L]) -> Self {
+        SoftF32(a.first().copied().unwrap_or(0.0))
+    }
+    #[inline(always)]
+    fn to_lanes<const L: usize>(self) -> [f32; L] {
+        let mut b = [0.0; L];
+        if let Some(o) = b.first_mut() {
+            *o = self.0;
+        }
+        b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// SplitMix64: a seeded stream of test operands.
+    struct Mix(u64);
+
+    impl Mix {
+        fn next(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            z ^ (z >> 31)
+        }
+
+        /// An operand: any bit pattern, or one near the patterns that matter (zero,
+        /// the normal range's ends, ties, close exponents).
+        fn operand(&mut self, near: u32) -> u32 {
+            let r = self.next();
+            match r % 8 {
+                0 => (r >> 32) as u32,
+                1 => (r >> 8) as u32 & 0x7fff_ffff,
+                2 => near.wrapping_add((r >> 40) as u32 % 64).wrapping_sub(32),
+                3 => {
+                    [0, 1, IMPLICIT, INF - 1, INF, 0x8000_0000, 0x7fc0_0000][(r >> 8) as usize % 7]
+                }
+                4 => ((r >> 8) as u32 & MANT) | (((r >> 40) as u32 % 8 + 1) << 23),
+                5 => ((r >> 8) as u32 & MANT) | ((250 + (r >> 40) as u32 % 5) << 23),
+                _ => ((r >> 8) as u32 & 0x7fff_ffff) % INF,
+            }
+        }
+    }
+
+    fn same(x: f32, y: f32) -> bool {
+        x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan())
+    }
+
+    /// Every product, sum and compare equals `f32`'s, bit for bit, on 4 million
+    /// operand pairs drawn around the fast paths' edges.
+    #[test]
+    fn arithmetic_is_bit_identical_to_f32() {
+        let mut g = Mix(20261126);
+        let (mut fast_mul, mut fast_add) = (0, 0);
+        for i in 0..4_000_000u32 {
+            let a = g.operand(0x3f80_0000);
+            // The second operand near the first, or near a value a few binades off.
+            let near = a.wrapping_add(((i % 29) << 23).wrapping_sub(14 << 23));
+            let b = g.operand(near);
+            let (x, y) = (f32::from_bits(a), f32::from_bits(b));
+            let (sx, sy) = (SoftF32(x), SoftF32(y));
+            assert!(same((sx * sy).0, x * y), "{a:#x} * {b:#x}");
+            assert!(same((sx + sy).0, x + y), "{a:#x} + {b:#x}");
+            assert_eq!(greater(x, y), x > y, "{a:#x} > {b:#x}");
+            assert!(same(sx.max(sy).0, x.max_like(y)), "max {a:#x} {b:#x}");
+            fast_mul += usize::from(mul_bits(a, b).is_some());
+            fast_add += usize::from(add_bits(a, b).is_some());
+        }
+        // The fast paths carry most of the pairs (the rest are other kinds of values).
+        assert!(
+            fast_mul > 1_000_000 && fast_add > 1_000_000,
+            "{fast_mul} {fast_add}"
+        );
+    }
+
+    /// The scalar `f32` lanes' `max`: `o` where `o > self`.
+    trait MaxLike {
+        fn max_like(self, o: Self) -> Self;
+    }
+
+    impl MaxLike for f32 {
+        fn max_like(self, o: f32) -> f32 {
+            if o > self { o } else { self }
+        }
+    }
+
+    /// Ties to even, carries out of the significand and the normal range's edges.
+    #[test]
+    fn rounding_edges() {
+        let one = 1.0f32;
+        let ulp = f32::EPSILON;
+        for (a, b) in [
+            (one, ulp / 2.0),             // a tie, rounds to even (down)
+            (one + ulp, ulp / 2.0),       // a tie, rounds to even (up)
+            (one, ulp / 2.0 + ulp / 4.0), // above the tie
+            (f32::MAX, f32::MAX),         // overflow: the soft-float path
+            (f32::MIN_POSITIVE, 0.5),     // subnormal product
+            (2.0 - ulp, 2.0 - ulp),       // significand carry
+            (1.5, 1.5),
+            (0.0, f32::MAX),
+        ] {
+            let (sa, sb) = (SoftF32(a), SoftF32(b));
+            assert_eq!((sa + sb).0.to_bits(), (a + b).to_bits(), "{a:e} + {b:e}");
+            assert_eq!((sa * sb).0.to_bits(), (a * b).to_bits(), "{a:e} * {b:e}");
+        }
+    }
+}
