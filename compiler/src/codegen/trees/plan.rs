@@ -265,7 +265,9 @@ pub(super) fn report(
     // Calls, saved registers and the accumulators of every forest; a pass's row
     // temporaries (belief, message, evidence factor, its power, the parent's row,
     // the division, the downward message) with room for spills.
-    let table = n * (row + 4);
+    // A table entry is a row and its exponent, padded to the row's alignment.
+    let align = (cx.width * s).max(4);
+    let table = n * (row + 4).next_multiple_of(align);
     let base = 1024 + t * (24 + s);
     let temps = 16 * row + 512;
     let value = h * (row + 1) + temps;
@@ -284,7 +286,6 @@ pub(super) fn report(
     let stack_marginals = with(cache.marginals, marginals);
     let stack_mpe = with(cache.values, mpe);
     let stack_state = with(cache.state, base + value).max(base + path.max(value + n * c));
-    let align = (cx.width * s).max(4);
     let fields = n * c * s + n * fused_bytes(c, s) + t * n * row + 4 * t * n + 4 * t + 1;
     let state_bytes = fields.div_ceil(align) * align;
     let per_forest =

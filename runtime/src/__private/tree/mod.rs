@@ -25,13 +25,15 @@
 //!   or for a labelled place only the label's entry (`x_l = α_l / 2^{E_l}`). On SIMD
 //!   hosts entries of `x` below `2^⌈TINY_EXP/γ⌉` are flushed to 0 before the power, so
 //!   every nonzero `x^γ` is at least `2^TINY_EXP`. `φ`'s largest entry is at least
-//!   `2^-20 · C^-γ ≥ 2^-84`.
+//!   `2^-20 · C^-γ ≥ 2^-84`. Scalar code folds `u` into the message matrices instead
+//!   ([`TreeModel::folded`]): `φ = x^γ`, largest entry at least `C^-γ ≥ 2^-64`.
 //! - Messages `ψ·b` need no flush: `ψ > 0` with a largest/smallest ratio of at most
 //!   `1e6 < 2^20` (checked by the model), so every entry of a message is at least
-//!   `2^-20` of its largest, `2^-28` once normalised.
+//!   `2^-20` of its largest, `2^-28` once normalised (`u` folded into a downward
+//!   message's matrix, also checked at `1e6`, adds its own `2^-20`).
 //! - Beliefs (products of `φ` and messages) are renormalised after every factor, so
-//!   the largest entry of every product formed is at least `2^-84 · 2^-28`, inside
-//!   the normal range. On SIMD hosts entries below `2^TINY_EXP` (`2^-80` in `f32`,
+//!   the largest entry of every product formed is at least `2^-113` (a leaf's `φ`
+//!   times a downward message, see `full_below`), inside the normal range. On SIMD hosts entries below `2^TINY_EXP` (`2^-80` in `f32`,
 //!   `2^-600` in `f64`) are flushed to 0 after every factor: nothing ever becomes
 //!   subnormal (an x86 CPU takes ~100 cycles per subnormal operand). Scalar code
 //!   (microcontrollers) does not flush: `C` compares per row cost more there than the
@@ -363,9 +365,9 @@ fn scale_pow2<V: Lanes, const K: usize>(x: &mut [V; K], e: i32) {
 
 /// The evidence factor `φ` of a place (see the module docs) and its exponent: the
 /// exact factor is `φ · 2^e`. Not normalised: its largest entry lies in
-/// `[2^-20 · C^-γ, 2^γ)` (`x`'s in `[1/C, 2)`, `u`'s in `[2^-20, 1]`); on SIMD hosts
-/// every nonzero entry is at least `2^(TINY_EXP - 20)`. `label < C` keeps only that
-/// class.
+/// `[2^-20 · C^-γ, 2^γ)` (`x`'s in `[1/C, 2)`, `u`'s in `[2^-20, 1]`; without `u` when
+/// [`TreeModel::folded`]); on SIMD hosts every nonzero entry is at least `2^(TINY_EXP -
+/// 20)`. `label < C` keeps only that class.
 #[inline(always)]
 pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
     m: &TreeModel<V, C, K>,

@@ -246,10 +246,12 @@ fn without<V: Lanes, const C: usize, const K: usize>(
     r
 }
 
-/// `full(v) = belief(v) ⊙ ψ·(full(parent) / m_v)`, normalised. The downward message is
-/// not normalised: `full(parent)`'s entries sum to `[1, 2)` and `m_v`'s entries lie in
-/// `[2^-28, 2)` (see the module docs), so its entries lie in `[2^-29, C·2^29)` and the
-/// largest entry of its product with the belief stays far inside the normal range.
+/// `full(v) = belief(v) ⊙ ψ·(full(parent) / m_v)`, normalised (`ψ` the downward
+/// matrix). The downward message is not normalised: `full(parent)`'s entries sum to
+/// `[1, 2)` and `m_v`'s entries lie in `[2^-28, 2)` (see the module docs), so its
+/// entries lie in `[2^-29, C·2^29)` (`[2^-49, C·2^29)` with `u` folded in), and its
+/// product with the belief (largest entry at least `2^-84`, or `2^-64` folded) has a
+/// largest entry of at least `2^-113`: inside the normal range.
 #[inline(always)]
 pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usize>(
     m: &TreeModel<V, C, K>,
