@@ -34,7 +34,8 @@ use crate::treemix::{SpanningTrees, TreeMixture};
 use super::emit::{array, int, int_array, rt};
 use super::surface::{CodeReport, Surface, compiled_map_impl, constants_and_types};
 use super::{CodegenError, CodegenOptions};
-use plan::{Context, FactorCache, ForestPlan, Potentials};
+use graphspn_runtime::__private::FactorCache;
+use plan::{Context, ForestPlan, Potentials};
 
 /// Checks that the model, the map and the forests fit each other.
 pub fn check_inputs(

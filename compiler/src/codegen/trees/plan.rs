@@ -3,6 +3,8 @@
 //! with depths, parents, children, roots) and `ln Z_t`, and the report (stack bounds,
 //! state and table bytes, multiply-adds).
 
+use graphspn_runtime::__private::FactorCache;
+
 use crate::treemix::{NO_PARENT, RootedForest, SpanningTrees, TreeMixture};
 
 use super::super::emit::Lit;
@@ -237,18 +239,6 @@ fn log_partition(post: &[[usize; 2]], children: &[Vec<u32>], pot: &Potentials, c
         msg[v] = m.into_iter().map(|x| x / s).collect();
     }
     log_z
-}
-
-/// Which entry points compute every place's `φ` once into a stack table (the
-/// runtime's `FactorCache`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct FactorCache {
-    /// `log_likelihood`, `labelled_log_likelihood` and `mpe`.
-    pub values: bool,
-    /// The stateless `marginals`.
-    pub marginals: bool,
-    /// The streaming state's `marginals`.
-    pub state: bool,
 }
 
 /// The report: stack bounds (frames of the runtime driver's passes, measured on

@@ -217,21 +217,16 @@ pub(crate) fn norm<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
 }
 
 /// [`norm`], and on SIMD hosts entries below `2^TINY_EXP` (after scaling) flushed to
-/// zero in the same sweep (see the module docs: scalar code leaves tiny entries to the
-/// FPU, whose subnormal arithmetic costs nothing extra on microcontrollers).
+/// zero (see the module docs: scalar code leaves tiny entries to the FPU, whose
+/// subnormal arithmetic costs nothing extra on microcontrollers).
 #[inline(always)]
 pub(crate) fn norm_flush<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
-    if V::WIDTH == 1 {
-        return norm(a);
-    }
-    let s = hsum(a);
-    if !above(s, V::Scalar::ZERO) {
-        return 0;
-    }
-    let (k, e) = s.normal_scale();
-    let (k, t) = (V::splat(k), V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP)));
-    for x in a.iter_mut() {
-        *x = (*x * k).flush(t);
+    let e = norm(a);
+    if V::WIDTH > 1 {
+        let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP));
+        for x in a.iter_mut() {
+            *x = x.flush(t);
+        }
     }
     e
 }
