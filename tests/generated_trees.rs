@@ -94,7 +94,8 @@ fn cold_maps_match_tree_instance_and_interpreter() {
     } else {
         paths.extend(COLD_MAPS.iter().map(|m| data.join(m)));
     }
-    // `FIXED`: the no-FPU targets' form (`SoftF32` rows), bit-identical to `F32_SCALAR`.
+    // `FIXED`: the no-FPU targets' form (`SoftF32` rows, fixed-point messages), within
+    // its bound.
     let every = [
         Variant::F32,
         Variant::F64,

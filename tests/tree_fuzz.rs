@@ -125,6 +125,10 @@ struct Paths {
     one_tree: usize,
     /// Scalar modules whose deepest entry point computes `φ` in each pass (no table).
     factor_rows: usize,
+    /// `SoftF32` modules with fixed-point messages, and with `f32` messages (potentials
+    /// too small for the fixed-point bound).
+    fixed_messages: usize,
+    float_messages: usize,
     brute_force: usize,
 }
 
@@ -201,8 +205,8 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
         model,
         map,
         trees,
-        // f32 scalar code also in the no-FPU targets' form (`SoftF32` rows), which must
-        // give the same bits.
+        // f32 scalar code also in the no-FPU targets' form (`SoftF32` rows, fixed-point
+        // messages where the model's bound allows), within its bound.
         variants: if variant.precision == Precision::F32
             && variant.vectorisation == Vectorisation::Scalar
         {
@@ -220,6 +224,15 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
     let src = case.source(&variant);
     let flags = src.find("FactorCache {").map(|i| &src[i..]).unwrap_or("");
     paths.factor_rows += usize::from(flags[..flags.find('}').unwrap_or(0)].contains("false"));
+    if case
+        .variants
+        .iter()
+        .any(|v| v.arithmetic == Arithmetic::Fixed)
+    {
+        let fixed = case.source(&Variant::FIXED).contains("FixedMatrices {");
+        paths.fixed_messages += usize::from(fixed);
+        paths.float_messages += usize::from(!fixed);
+    }
     case
 }
 
@@ -301,6 +314,8 @@ fn random_tree_mixtures_match_tree_instance_interpreter_and_brute_force() {
             deep,
             one_tree,
             factor_rows,
+            fixed_messages,
+            float_messages,
             brute_force,
         } = paths;
         for (what, count) in [
@@ -319,6 +334,8 @@ fn random_tree_mixtures_match_tree_instance_interpreter_and_brute_force() {
             ("a deep tree", deep),
             ("one tree", one_tree),
             ("φ computed in each pass", factor_rows),
+            ("fixed-point messages", fixed_messages),
+            ("f32 messages on SoftF32 rows", float_messages),
             ("brute force", brute_force),
         ] {
             assert!(count > 0, "no fuzz structure reached: {what} ({paths:?})");

@@ -81,7 +81,7 @@ impl Variant {
     }
 
     /// Tolerance of the comparison: log-likelihoods relative, marginals absolute.
-    fn tolerance(&self) -> f64 {
+    pub fn tolerance(&self) -> f64 {
         match self.precision {
             Precision::F32 => 1e-4,
             Precision::F64 => 1e-9,

@@ -103,8 +103,12 @@ pub enum Arithmetic {
     /// within `2^-10`), else recomputed in `f32` (see the generator's
     /// `fixed` module). The rest of the module (evidence scaling, decomposition mixing,
     /// MPE) stays `f32`. Needs [`Precision::F32`] and [`Vectorisation::Scalar`]. A
-    /// tree mixture computes in `f32` with the runtime's `SoftF32` rows: integer fast
-    /// paths for its non-negative normal values, bit-identical to `f32` arithmetic.
+    /// tree mixture computes its messages `ψ·b` in Q0.32 (integer multiply-adds,
+    /// each entry within `η` of itself relatively, `η` in the report's
+    /// `message_error`; kept `f32` for models whose smallest potential makes `η`
+    /// exceed `2^-12`) and the rest in `f32` with the runtime's `SoftF32` rows:
+    /// integer fast paths for its non-negative normal values, bit-identical to `f32`
+    /// arithmetic, and rows rescaled by their largest entry's exponent in integers.
     Fixed,
 }
 

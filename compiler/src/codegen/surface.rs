@@ -54,6 +54,10 @@ pub struct CodeReport {
     /// or more per template, single components in scalar code; tree mixture:
     /// places on the paths to the roots, summed over the trees).
     pub units_per_update: f64,
+    /// Tree mixture on a target without an FPU with fixed-point messages: the relative
+    /// error bound `η` of one message entry (the runtime's `message_error`); `None`
+    /// where messages are `f32` (every other module).
+    pub message_error: Option<f64>,
 }
 
 impl CodeReport {

@@ -94,6 +94,25 @@ pub trait Lanes:
         }
         s
     }
+    /// Scales a row of non-negative values by a power of two in integer arithmetic so
+    /// that its largest entry lies in `[1, 2)`, and returns the exponent (the row
+    /// before = the row after `· 2^e`; a zero row gives 0); `None` for lanes without
+    /// that path (every lane type but `SoftF32`), which the tree driver normalises by
+    /// the exponent of the row's sum instead.
+    #[inline(always)]
+    fn norm_by_max<const K: usize>(_a: &mut [Self; K]) -> Option<i32> {
+        None
+    }
+    /// A tree message `ψ·b` by a Q0.32 matrix (`psi[a][j]`, see the tree driver's
+    /// fixed-point messages), normalised, with its exponent; `None` for lanes without
+    /// that path (every lane type but the no-FPU targets' `SoftF32`).
+    #[inline(always)]
+    fn fixed_message<const C: usize, const K: usize>(
+        _psi: &[[u32; C]; C],
+        _b: &[Self; K],
+    ) -> Option<([Self; K], i32)> {
+        None
+    }
 }
 
 /// Classes `from..` of [`Lanes::from_rows`], lane by lane.

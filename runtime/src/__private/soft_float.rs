@@ -15,6 +15,7 @@
 use core::ops::{Add, AddAssign, Div, Mul};
 
 use super::lanes::Lanes;
+use super::tree::message_bits;
 
 /// An `f32` whose arithmetic is done in integers where the operands allow it (see the
 /// module docs); bit-identical to `f32` arithmetic.
@@ -100,6 +101,12 @@ pub fn add_bits(a: u32, b: u32) -> Option<u32> {
     let (m, r) = (s >> 7, s & 0x7f);
     let up = r > 0x40 || (r == 0x40 && (sticky || m & 1 == 1));
     pack(e, m, up)
+}
+
+/// `2^e` for `-126 ≤ e ≤ 127` (a normal `f32`).
+#[inline(always)]
+fn pow2(e: i32) -> f32 {
+    f32::from_bits(((e + 127) as u32) << 23)
 }
 
 /// Whether both are non-negative (sign bits clear), so their bits order them.
@@ -252,6 +259,53 @@ impl Lanes for SoftF32 {
         }
         b
     }
+    #[inline(always)]
+    fn norm_by_max<const K: usize>(a: &mut [Self; K]) -> Option<i32> {
+        // Non-negative values are ordered as their bits.
+        let top = a.iter().fold(0u32, |m, x| m.max(x.0.to_bits()));
+        if top == 0 {
+            return Some(0);
+        }
+        let et = top >> 23;
+        if !normal(et) || top >> 31 != 0 {
+            return None;
+        }
+        let e = et as i32 - 127;
+        for x in a.iter_mut() {
+            let bits = x.0.to_bits();
+            let ex = (bits >> 23) as i32;
+            if ex >= 1 && ex - e >= 1 {
+                // Normal, and stays normal: the exponent field alone changes (exact).
+                *x = SoftF32(f32::from_bits(bits.wrapping_sub((e as u32) << 23)));
+            } else if bits != 0 {
+                // Zero-or-subnormal input or result: the soft-float multiply, in two
+                // exact steps where `2^-e` alone is not a normal `f32`.
+                *x = SoftF32(if e >= 127 {
+                    slow_mul(slow_mul(x.0, pow2(-64)), pow2(64 - e))
+                } else {
+                    slow_mul(x.0, pow2(-e))
+                });
+            }
+        }
+        Some(e)
+    }
+    #[inline(always)]
+    fn fixed_message<const C: usize, const K: usize>(
+        psi: &[[u32; C]; C],
+        b: &[Self; K],
+    ) -> Option<([Self; K], i32)> {
+        // One class per lane: `K = C`.
+        let mut bits = [0u32; C];
+        for (o, x) in bits.iter_mut().zip(b) {
+            *o = x.0.to_bits();
+        }
+        let (m, e) = message_bits(psi, &bits);
+        let mut out = [SoftF32(0.0); K];
+        for (o, &x) in out.iter_mut().zip(&m) {
+            *o = SoftF32(f32::from_bits(x));
+        }
+        Some((out, e))
+    }
 }
 
 #[cfg(test)]
@@ -316,6 +370,57 @@ mod tests {
         fn max_like(self, o: f32) -> f32 {
             if o > self { o } else { self }
         }
+    }
+
+    /// `norm_by_max` against `f64`: the row is scaled by exactly `2^-e` (zeros stay
+    /// zero, subnormal inputs and results included) and its largest entry lies in
+    /// `[1, 2)`.
+    #[test]
+    fn norm_by_max_scales_exactly() {
+        let mut g = ChaCha8Rng::seed_from_u64(20261127);
+        for case in 0..200_000u32 {
+            let top = 1 + (g.next_u32() % 254);
+            let mut row = [SoftF32(0.0); 7];
+            for x in row.iter_mut() {
+                let r = g.next_u32();
+                let e = match r % 4 {
+                    0 => 0,
+                    1 => top,
+                    _ => top.saturating_sub(r >> 24).max(u32::from(r & 16 != 0)),
+                };
+                let bits = if r % 7 == 0 {
+                    0
+                } else {
+                    (e << 23) | (g.next_u32() & MANT)
+                };
+                *x = SoftF32(f32::from_bits(bits));
+            }
+            row[case as usize % 7] = SoftF32(f32::from_bits((top << 23) | (g.next_u32() & MANT)));
+            let before = row.map(|x| f64::from(x.0));
+            let e = SoftF32::norm_by_max(&mut row).expect("a normal largest entry");
+            let largest = row.iter().map(|x| x.0).fold(0.0, f32::max);
+            assert!(
+                (1.0..2.0).contains(&largest),
+                "case {case}: largest {largest}"
+            );
+            for (a, b) in before.iter().zip(&row) {
+                let want = a * 2f64.powi(-e);
+                // Exact unless the result is subnormal (one rounding there).
+                let tol = if want < f64::from(f32::MIN_POSITIVE) {
+                    2f64.powi(-150)
+                } else {
+                    0.0
+                };
+                assert!(
+                    (f64::from(b.0) - want).abs() <= tol,
+                    "case {case}: {a:e} · 2^{} = {:e}",
+                    -e,
+                    b.0
+                );
+            }
+        }
+        let mut zeros = [SoftF32(0.0); 3];
+        assert_eq!(SoftF32::norm_by_max(&mut zeros), Some(0));
     }
 
     /// Ties to even, carries out of the significand and the normal range's edges.

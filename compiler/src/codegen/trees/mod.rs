@@ -78,7 +78,8 @@ pub fn module(
         .iter()
         .map(|f| ForestPlan::new(f, &pot, cx.c))
         .collect();
-    let (report, cache) = plan::report(&plans, &cx, options.stack_budget());
+    let (mut report, cache) = plan::report(&plans, &cx, options.stack_budget());
+    report.message_error = pot.fixed.as_ref().map(|f| f.error);
     report.check_budget(options)?;
     let constants = constants_and_types(&Surface {
         l: &cx.l,
@@ -224,6 +225,19 @@ fn model_static(pot: &Potentials, cache: FactorCache, cx: &Context) -> TokenStre
     let (up, down, folded) = (columns(&pot.up), columns(&pot.down), pot.folded);
     let unary = row(&pot.unary, 0.0, cx);
     let pad = row(&vec![0.0; c], 1.0, cx);
+    let fixed = match &pot.fixed {
+        Some(f) => {
+            let rows = |m: &[u32]| {
+                array(
+                    m.chunks(c)
+                        .map(|r| array(r.iter().map(|&x| int(x as usize)))),
+                )
+            };
+            let (fu, fd) = (rows(&f.up), rows(&f.down));
+            quote!(Some(#rt::FixedMatrices { up: #fu, down: #fd }))
+        }
+        None => quote!(None),
+    };
     let v = quote!(V).into_token_stream();
     let FactorCache {
         values,
@@ -232,8 +246,9 @@ fn model_static(pot: &Potentials, cache: FactorCache, cx: &Context) -> TokenStre
     } = cache;
     quote! {
         /// The compiled model: the message matrices by columns and `u` (largest entry 1),
-        /// where `u` enters, `γ`, the mixing, the forests and which entry points keep a
-        /// table of every place's `φ`.
+        /// where `u` enters, `γ`, the mixing, the forests, which entry points keep a
+        /// table of every place's `φ`, and the Q0.32 message matrices by rows where
+        /// messages are computed in fixed point.
         static MODEL: #rt::TreeModel<#v, NUM_CLASSES, K> = #rt::TreeModel {
             psi_up: #up,
             psi_down: #down,
@@ -244,6 +259,7 @@ fn model_static(pot: &Potentials, cache: FactorCache, cx: &Context) -> TokenStre
             average: AVERAGE_MIXING,
             forests: &FORESTS,
             cache: #rt::FactorCache { values: #values, marginals: #marginals, state: #state },
+            fixed: #fixed,
         };
     }
 }

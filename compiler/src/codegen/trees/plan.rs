@@ -3,7 +3,7 @@
 //! with depths, parents, children, roots) and `ln Z_t`, and the report (stack bounds,
 //! state and table bytes, multiply-adds).
 
-use graphspn_runtime::__private::FactorCache;
+use graphspn_runtime::__private::{FactorCache, MAX_MESSAGE_ERROR, message_error};
 
 use crate::treemix::{NO_PARENT, RootedForest, SpanningTrees, TreeMixture};
 
@@ -30,7 +30,8 @@ pub(super) struct Context {
     /// Bytes of one scalar.
     pub scalar: usize,
     /// Scalar `f32` code for a target without an FPU: rows of `SoftF32` (integer fast
-    /// paths, bit-identical to `f32`) instead of `f32`.
+    /// paths, bit-identical to `f32`) instead of `f32`, and fixed-point messages where
+    /// the model's bound allows ([`Potentials::fixed`]).
     pub soft: bool,
 }
 
@@ -114,6 +115,35 @@ pub(super) struct Potentials {
     pub down: Vec<f64>,
     pub unary: Vec<f64>,
     pub folded: bool,
+    /// The message matrices in Q0.32 (`[a · C + j]`, rounded once from the exact
+    /// products) where messages are computed in fixed point: `SoftF32` rows whose
+    /// per-message bound (the runtime's `message_error`) is at most
+    /// `MAX_MESSAGE_ERROR`; with that bound.
+    pub fixed: Option<FixedPotentials>,
+}
+
+/// The Q0.32 message matrices of [`Potentials::fixed`] and their error bound.
+pub(super) struct FixedPotentials {
+    pub up: Vec<u32>,
+    pub down: Vec<u32>,
+    /// `η`: the relative error bound of one message entry.
+    pub error: f64,
+}
+
+impl FixedPotentials {
+    /// The Q0.32 matrices of the exact folded products `up`, `down` (largest entry at
+    /// most 1), when their bound allows.
+    fn new(up: &[f64], down: &[f64], c: usize) -> Option<FixedPotentials> {
+        let q = |m: &[f64]| -> Vec<u32> {
+            m.iter()
+                .map(|&x| (x * 2f64.powi(32)).round().min(f64::from(u32::MAX)) as u32)
+                .collect()
+        };
+        let (up, down) = (q(up), q(down));
+        let min = up.iter().chain(&down).copied().min().unwrap_or(0);
+        let error = message_error(c, f64::from(min) / 2f64.powi(32));
+        (min > 0 && error <= MAX_MESSAGE_ERROR).then_some(FixedPotentials { up, down, error })
+    }
 }
 
 impl Potentials {
@@ -125,12 +155,20 @@ impl Potentials {
         let (psi, unary) = (scaled(&model.potential), scaled(&model.unary));
         let c = cx.c;
         let folded = cx.width == 1;
-        let entry = |i: usize, u: f64| cx.round(if folded { psi[i] * u } else { psi[i] });
+        let entry = |i: usize, u: f64| if folded { psi[i] * u } else { psi[i] };
+        let up: Vec<f64> = (0..c * c).map(|i| entry(i, unary[i % c])).collect();
+        let down: Vec<f64> = (0..c * c).map(|i| entry(i, unary[i / c])).collect();
+        let fixed = if cx.soft {
+            FixedPotentials::new(&up, &down, c)
+        } else {
+            None
+        };
         Potentials {
-            up: (0..c * c).map(|i| entry(i, unary[i % c])).collect(),
-            down: (0..c * c).map(|i| entry(i, unary[i / c])).collect(),
+            up: up.iter().map(|&x| cx.round(x)).collect(),
+            down: down.iter().map(|&x| cx.round(x)).collect(),
             unary: unary.iter().map(|&x| cx.round(x)).collect(),
             folded,
+            fixed,
         }
     }
 }
@@ -301,6 +339,7 @@ pub(super) fn report(
         macs_mpe: (edges + best) * mv,
         macs_observe_marginals: (worst_path + edges) * mv,
         units_per_update: (0..n).map(path_len).sum::<usize>() as f64 / n.max(1) as f64,
+        message_error: None,
     };
     (report, cache)
 }

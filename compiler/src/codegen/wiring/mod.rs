@@ -673,6 +673,7 @@ fn report(
         macs_mpe,
         macs_observe_marginals: worst_update + u_total * 2 + rows * c,
         units_per_update: (0..n).map(|p| update_cost(p).1).sum::<usize>() as f64 / n.max(1) as f64,
+        message_error: None,
     };
     report.check_budget(options)?;
     Ok((report, Passes { one_pass, prescale }))

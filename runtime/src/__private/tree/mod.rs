@@ -18,7 +18,13 @@
 //! no overflow however large the map. No `f64` arithmetic happens in `f32` code. (The
 //! sum, not the largest entry, picks the scale: a few additions instead of `C`
 //! compares, which cost four instructions each on a Cortex-M4F. Power-of-two scaling
-//! is exact, so the choice changes no result.)
+//! is exact, so the choice changes no result.) On targets without an FPU (`SoftF32`
+//! rows, [`Lanes::norm_by_max`]) the largest entry picks it instead, in integers (an
+//! integer maximum of the bits, then the exponent field changed: a few instructions
+//! per entry against a soft-float add and multiply), so there a row's largest entry
+//! lies in `[1, 2)` and its sum in `[1, 2C)`; the ranges below hold with room to
+//! spare. Those targets also compute messages in fixed point where the model allows
+//! ([`FixedMatrices`], with its own error bound: see `fixed_messages.rs`).
 //!
 //! - Evidence: a place's factor is `φ = u ⊙ x^γ` with `x = α / 2^E` (`E` the binary
 //!   exponent of the row's sum, or of its largest entry if the sum overflows: exact),
@@ -62,9 +68,11 @@
 //!   per place and parent class, then labels top-down;
 //! - the streaming state (`state.rs`) caches every forest's stored upward pass.
 
+mod fixed_messages;
 mod pass;
 mod state;
 
+pub use fixed_messages::*;
 pub use pass::*;
 pub use state::*;
 
@@ -140,6 +148,10 @@ pub struct TreeModel<V: Lanes, const C: usize, const K: usize> {
     pub forests: &'static [Forest<V::Scalar>],
     /// Which entry points compute every place's `φ` once into a stack table.
     pub cache: FactorCache,
+    /// The message matrices in Q0.32 where messages are computed in fixed point
+    /// (targets without an FPU, when the model's bound allows: see
+    /// [`FixedMatrices`]); `None`: `f32` messages.
+    pub fixed: Option<FixedMatrices<C>>,
 }
 
 /// Which entry points first compute the evidence factor `φ` of every place once into a
@@ -207,6 +219,9 @@ pub(crate) fn argmax<V: Lanes, const K: usize>(a: &[V; K]) -> u16 {
 /// the module docs).
 #[inline(always)]
 pub(crate) fn norm<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
+    if let Some(e) = V::norm_by_max(a) {
+        return e;
+    }
     let s = hsum(a);
     if !above(s, V::Scalar::ZERO) {
         return 0;
@@ -290,6 +305,39 @@ pub(crate) fn matvec<V: Lanes, const C: usize, const K: usize>(
     b: &[V; K],
 ) -> [V; K] {
     columns(psi, b, |o, c, s| c.mul_add(s, o))
+}
+
+/// The upward message of a place whose belief is `b`: `ψ_up·b` normalised, and its
+/// exponent (fixed point where the model has [`FixedMatrices`] and the lanes that
+/// path, else [`matvec`] and [`norm`]).
+#[inline(always)]
+pub(crate) fn up_message<V: Lanes, const C: usize, const K: usize>(
+    m: &TreeModel<V, C, K>,
+    b: &[V; K],
+) -> ([V; K], i32) {
+    if let Some(r) = m.fixed.as_ref().and_then(|fx| V::fixed_message(&fx.up, b)) {
+        return r;
+    }
+    let mut msg = matvec(&m.psi_up, b);
+    let e = norm(&mut msg);
+    (msg, e)
+}
+
+/// The downward message `ψ_down·r` up to a positive factor (its scale is never used:
+/// the belief it multiplies is normalised), fixed point as in [`up_message`].
+#[inline(always)]
+pub(crate) fn down_message<V: Lanes, const C: usize, const K: usize>(
+    m: &TreeModel<V, C, K>,
+    r: &[V; K],
+) -> [V; K] {
+    match m
+        .fixed
+        .as_ref()
+        .and_then(|fx| V::fixed_message(&fx.down, r))
+    {
+        Some((msg, _)) => msg,
+        None => matvec(&m.psi_down, r),
+    }
 }
 
 /// Max-product `ψ·b`: `m(a) = max_j ψ(a, j) b(j)`.
@@ -380,16 +428,22 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
         (pack::<V, C, K>(&one), e)
     } else {
         let mut x = pack::<V, C, K>(row);
-        // The sum's exponent (the largest entry's if the sum overflows).
-        let s = hsum(&x);
-        let e = if s.scalable() {
-            let (k, e) = s.normal_scale();
-            scale(&mut x, k);
-            e
-        } else {
-            let (_, e) = if s.is_finite() { s } else { hmax(&x) }.split();
-            scale_pow2(&mut x, e);
-            e
+        // The sum's exponent (the largest entry's if the sum overflows, or where the
+        // lanes scale by it in integers).
+        let e = match V::norm_by_max(&mut x) {
+            Some(e) => e,
+            None => {
+                let s = hsum(&x);
+                if s.scalable() {
+                    let (k, e) = s.normal_scale();
+                    scale(&mut x, k);
+                    e
+                } else {
+                    let (_, e) = if s.is_finite() { s } else { hmax(&x) }.split();
+                    scale_pow2(&mut x, e);
+                    e
+                }
+            }
         };
         if V::WIDTH > 1 {
             let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP / m.gamma.max(1) as i32));

@@ -7,8 +7,8 @@
 
 use super::super::{Acc, Lanes, Real, above, best, mix};
 use super::{
-    Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, hmax, hsum, matvec, maxvec,
-    mul, mul_norm, norm, pack,
+    Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, down_message, hmax, hsum,
+    maxvec, mul, mul_norm, norm, pack, up_message,
 };
 use crate::EvidenceError;
 
@@ -71,15 +71,15 @@ fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
 /// One post-order sweep of forest `f` with a stack of `H` rows (`H` > the forest's
 /// height + 1): the belief of every place (`φ` of the place, then its children's
 /// messages multiplied in as they complete, exactly the order of [`belief`]) goes to
-/// `root(v, b)` for a root and to `message(v, b)` otherwise, whose result is
-/// multiplied into the parent's belief. Returns the sum of the exponents of every
+/// `root(v, b)` for a root and to `message(v, b)` otherwise, whose result (normalised,
+/// with its exponent) is multiplied into the parent's belief. Returns the sum of the exponents of every
 /// normalisation.
 #[inline(always)]
 fn sweep<V: Lanes, const K: usize, const H: usize>(
     src: &dyn Factors<V, K>,
     f: &Forest<V::Scalar>,
     unary: Option<&[V; K]>,
-    mut message: impl FnMut(usize, &[V; K]) -> [V; K],
+    mut message: impl FnMut(usize, &[V; K]) -> ([V; K], i32),
     mut root: impl FnMut(usize, &[V; K]),
 ) -> i32 {
     let mut slots = [[V::ZERO; K]; H];
@@ -107,8 +107,8 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
             root(v, &r);
             continue;
         }
-        let mut msg = message(v, &b);
-        k = k.wrapping_add(norm(&mut msg));
+        let (msg, e) = message(v, &b);
+        k = k.wrapping_add(e);
         if let (Some(h), Some(s)) = (has.get_mut(d), slots.get_mut(d)) {
             // The parent's row so far (its `φ` for its first child), times the message,
             // written back once.
@@ -123,6 +123,13 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
         }
     }
     k
+}
+
+/// A row normalised by [`norm`], with its exponent.
+#[inline(always)]
+fn normed<V: Lanes, const K: usize>(mut r: [V; K]) -> ([V; K], i32) {
+    let e = norm(&mut r);
+    (r, e)
 }
 
 /// `P_t(α)`, the value of forest `f` (`max`: the max-product value `max_y P_t(y) Π
@@ -141,9 +148,9 @@ fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
         m.root_unary(),
         |_, b| {
             if max {
-                maxvec(&m.psi_up, b)
+                normed(maxvec(&m.psi_up, b))
             } else {
-                matvec(&m.psi_up, b)
+                up_message(m, b)
             }
         },
         |_, b| acc.mul(if max { hmax(b) } else { hsum(b) }),
@@ -210,8 +217,7 @@ pub(crate) fn tree_upward<V: Lanes, const C: usize, const K: usize, const N: usi
             acc.mul(hsum(&r));
             (r, eb)
         } else {
-            let mut msg = matvec(&m.psi_up, &b);
-            let em = norm(&mut msg);
+            let (msg, em) = up_message(m, &b);
             (msg, eb.wrapping_add(em))
         };
         if let Some(s) = msgs.get_mut(v) {
@@ -264,7 +270,7 @@ pub(crate) fn full_below<V: Lanes, const C: usize, const K: usize, const N: usiz
     let Some(mv) = msgs.get(v) else {
         return [V::ZERO; K];
     };
-    let down = matvec(&m.psi_down, &without::<V, C, K>(parent_full, mv, &m.pad));
+    let down = down_message(m, &without::<V, C, K>(parent_full, mv, &m.pad));
     let (mut b, _) = belief(src, f, msgs, v);
     mul_norm(&mut b, &down);
     b
@@ -436,8 +442,8 @@ fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H:
         f,
         m.root_unary(),
         |v, b| match arg.get_mut(v) {
-            Some(a) => argvec(&m.psi_up, b, a),
-            None => [V::ZERO; K],
+            Some(a) => normed(argvec(&m.psi_up, b, a)),
+            None => ([V::ZERO; K], 0),
         },
         |v, b| {
             if let Some(l) = labels.get_mut(v) {

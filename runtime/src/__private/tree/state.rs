@@ -30,7 +30,7 @@ use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, ln_shift, mix
 use super::pass::{
     add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
 };
-use super::{Forest, Rows, TreeModel, belief, hsum, matvec, norm};
+use super::{Forest, Rows, TreeModel, belief, hsum, up_message};
 use crate::EvidenceError;
 
 /// The caller-owned cache of a compiled tree mixture (see the module docs); all zeros
@@ -146,8 +146,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
                 let (out, ev) = if root {
                     (m.root_belief(b), eb)
                 } else {
-                    let mut mm = matvec(&m.psi_up, &b);
-                    let em = norm(&mut mm);
+                    let (mm, em) = up_message(m, &b);
                     (mm, eb.wrapping_add(em))
                 };
                 if let (Some(s), Some(x)) = (msgs.get_mut(a), exps.get_mut(a)) {
