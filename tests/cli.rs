@@ -168,6 +168,28 @@ fn compile_writes_a_tree_mixture_module_and_reports_it() {
     let src = std::fs::read_to_string(&out).unwrap();
     assert!(src.contains("pub const MODEL_FAMILY: &str = \"tree_mixture\";"));
     assert!(src.contains("pub const NUM_TREES: usize = 3;"));
+    assert!(
+        !err.contains("fixed point") && src.contains("fixed: None"),
+        "{err}"
+    );
+    // For a target without an FPU: fixed-point messages, with their bound reported.
+    let run = bin()
+        .args(["compile", "--fixed-point", "--count", "3", "--model"])
+        .arg(demo("tree_model.json"))
+        .arg("--map")
+        .arg(demo("floor.json"))
+        .arg("--out")
+        .arg(dir.path().join("fixed.rs"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("messages in fixed point, each entry within 4.71e-5"),
+        "{err}"
+    );
+    let src = std::fs::read_to_string(dir.path().join("fixed.rs")).unwrap();
+    assert!(src.contains("FixedMatrices {") && src.contains("SoftF32"));
     for flags in [["--strategy", "cover"], ["--decompositions", "d.json"]] {
         let run = bin()
             .args(["compile", "--model"])

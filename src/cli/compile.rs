@@ -277,8 +277,11 @@ fn describe(inputs: &AnyInputs, r: &CodeReport) -> String {
             "places on its paths to the roots, over all trees,",
         ),
     };
+    let fixed = r.message_error.map_or(String::new(), |eta| {
+        format!("; messages in fixed point, each entry within {eta:.2e} of itself (relative)")
+    });
     format!(
-        "{what}; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} {units} on average",
+        "{what}; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} {units} on average{fixed}",
         r.stack_log_likelihood,
         r.stack_marginals,
         r.stack_mpe,

@@ -9,8 +9,8 @@
 //! Why: without an FPU every `f32` operation is a call into the compiler's soft-float
 //! routines, which handle signs, subnormals, infinities and NaNs on every operation
 //! (about 40–70 instructions on RV32IMAC); the fast paths here need a 32×32→64-bit
-//! multiply or one alignment shift and a rounding step. Division keeps the soft-float
-//! call (a few per place, against `C²` multiply-adds).
+//! multiply or one alignment shift and a rounding step; division four 32-bit integer
+//! divisions.
 
 use core::ops::{Add, AddAssign, Div, Mul};
 
@@ -109,6 +109,39 @@ fn pow2(e: i32) -> f32 {
     f32::from_bits(((e + 127) as u32) << 23)
 }
 
+/// The bits of `a / b` for non-negative finite normal operands (or `a = 0`) with a
+/// normal (or zero) result, rounded to nearest even; `None` otherwise. Long division
+/// of the significands in four 32-bit integer divisions (one instruction each on
+/// RV32IM and Cortex-M3).
+#[inline(always)]
+pub fn div_bits(a: u32, b: u32) -> Option<u32> {
+    let (ea, eb) = (a >> 23, b >> 23);
+    if !normal(ea) || !normal(eb) {
+        // Zero over a positive normal value is +0; the rest is not ours.
+        return (a == 0 && normal(eb)).then_some(0);
+    }
+    let (mut ma, mb) = ((a & MANT) | IMPLICIT, (b & MANT) | IMPLICIT);
+    let mut e = ea as i32 - eb as i32 + 127;
+    if ma < mb {
+        ma <<= 1;
+        e -= 1;
+    }
+    // ma / mb in [1, 2): q = ⌊ma · 2^25 / mb⌋ in [2^25, 2^26), in chunks of 7, 8, 8
+    // and 2 bits (every dividend below 2^32).
+    let n = ma << 7;
+    let (mut q, mut r) = (n / mb, n % mb);
+    for bits in [8u32, 8, 2] {
+        let n = r << bits;
+        q = (q << bits) | (n / mb);
+        r = n % mb;
+    }
+    // q: 24 significand bits over 2 rounding bits; r: what lies below (a quotient of
+    // two 24-bit significands is never an exact tie, but the rule is written whole).
+    let (m, g) = (q >> 2, q & 3);
+    let up = g > 2 || (g == 2 && (r != 0 || m & 1 == 1));
+    pack(e, m, up)
+}
+
 /// Whether both are non-negative (sign bits clear), so their bits order them.
 #[inline(always)]
 fn both_plain(a: u32, b: u32) -> bool {
@@ -144,6 +177,7 @@ fn slow_mul(a: f32, b: f32) -> f32 {
 }
 
 /// `a / b` by the target's `f32` operation (see [`slow_mul`]).
+#[cold]
 #[inline(never)]
 fn slow_div(a: f32, b: f32) -> f32 {
     a / b
@@ -189,7 +223,10 @@ impl Div for SoftF32 {
     type Output = SoftF32;
     #[inline(always)]
     fn div(self, o: SoftF32) -> SoftF32 {
-        SoftF32(slow_div(self.0, o.0))
+        match div_bits(self.0.to_bits(), o.0.to_bits()) {
+            Some(b) => SoftF32(f32::from_bits(b)),
+            None => SoftF32(slow_div(self.0, o.0)),
+        }
     }
 }
 
@@ -259,7 +296,7 @@ impl Lanes for SoftF32 {
         }
         b
     }
-    #[inline(always)]
+    #[inline(never)]
     fn norm_by_max<const K: usize>(a: &mut [Self; K]) -> Option<i32> {
         // Non-negative values are ordered as their bits.
         let top = a.iter().fold(0u32, |m, x| m.max(x.0.to_bits()));
@@ -289,7 +326,7 @@ impl Lanes for SoftF32 {
         }
         Some(e)
     }
-    #[inline(always)]
+    #[inline(never)]
     fn fixed_message<const C: usize, const K: usize>(
         psi: &[[u32; C]; C],
         b: &[Self; K],
@@ -334,12 +371,12 @@ mod tests {
         x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan())
     }
 
-    /// Every product, sum and compare equals `f32`'s, bit for bit, on 4 million
+    /// Every product, sum, quotient and compare equals `f32`'s, bit for bit, on 4 million
     /// operand pairs drawn around the fast paths' edges.
     #[test]
     fn arithmetic_is_bit_identical_to_f32() {
         let mut g = ChaCha8Rng::seed_from_u64(20261126);
-        let (mut fast_mul, mut fast_add) = (0, 0);
+        let (mut fast_mul, mut fast_add, mut fast_div) = (0, 0, 0);
         for i in 0..4_000_000u32 {
             let a = operand(&mut g, 0x3f80_0000);
             // The second operand near the first, or near a value a few binades off.
@@ -349,15 +386,17 @@ mod tests {
             let (sx, sy) = (SoftF32(x), SoftF32(y));
             assert!(same((sx * sy).0, x * y), "{a:#x} * {b:#x}");
             assert!(same((sx + sy).0, x + y), "{a:#x} + {b:#x}");
+            assert!(same((sx / sy).0, x / y), "{a:#x} / {b:#x}");
             assert_eq!(greater(x, y), x > y, "{a:#x} > {b:#x}");
             assert!(same(sx.max(sy).0, x.max_like(y)), "max {a:#x} {b:#x}");
             fast_mul += usize::from(mul_bits(a, b).is_some());
             fast_add += usize::from(add_bits(a, b).is_some());
+            fast_div += usize::from(div_bits(a, b).is_some());
         }
         // The fast paths carry most of the pairs (the rest are other kinds of values).
         assert!(
-            fast_mul > 1_000_000 && fast_add > 1_000_000,
-            "{fast_mul} {fast_add}"
+            fast_mul > 1_000_000 && fast_add > 1_000_000 && fast_div > 1_000_000,
+            "{fast_mul} {fast_add} {fast_div}"
         );
     }
 
@@ -441,6 +480,9 @@ mod tests {
             let (sa, sb) = (SoftF32(a), SoftF32(b));
             assert_eq!((sa + sb).0.to_bits(), (a + b).to_bits(), "{a:e} + {b:e}");
             assert_eq!((sa * sb).0.to_bits(), (a * b).to_bits(), "{a:e} * {b:e}");
+            if b != 0.0 {
+                assert_eq!((sa / sb).0.to_bits(), (a / b).to_bits(), "{a:e} / {b:e}");
+            }
         }
     }
 }

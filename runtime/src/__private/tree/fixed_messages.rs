@@ -62,7 +62,9 @@ const IMPLICIT: u32 = 0x0080_0000;
 
 /// `m = ψ·b` for a row `b` of non-negative finite `f32` values (their bits),
 /// normalised: returns the bits of `m / 2^e` (entries summing to `[1, 2)`) and `e`.
-/// A zero row gives zeros and `e = 0`. Error: see the module docs.
+/// A zero row gives zeros and `e = 0`. Error: see the module docs. (`SoftF32`'s
+/// `fixed_message` calls it and is out of line: its `C²` unrolled multiply-adds are
+/// kilobytes of machine code, which every pass of every map would repeat.)
 #[inline(always)]
 pub fn message_bits<const C: usize>(psi: &[[u32; C]; C], b: &[u32; C]) -> ([u32; C], i32) {
     // Non-negative values are ordered as their bits.
