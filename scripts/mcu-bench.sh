@@ -48,7 +48,8 @@ for p in "${PROFILES[@]}"; do
                 name = $4; sub(/^graphspn_firmware_maps::/, "", name); sub(/::.*/, "", name)
                 flash[name] += $2 + 0
             }
-            NF >= 4 && $4 ~ /^graphspn_runtime::__private::tree::/ { tree += $2 + 0 }
+            NF >= 4 && $4 ~ /^graphspn_runtime::__private::(tree|soft_float)::/ { tree += $2 + 0 }
+            NF >= 4 && $4 == "<graphspn_runtime::__private::soft_float::SoftF32" { tree += $2 + 0 }
             END { for (m in flash) print m, flash[m]; print "tree_driver", tree + 0 }' >>"$out/$t.$p.size"
     done
 done
@@ -104,7 +105,7 @@ for map in demo_floor saarbrucken_seq2_night1 demo_floor_trees saarbrucken_seq2_
     done
 done
 echo
-echo "### tree-mixture driver (graphspn_runtime::__private::tree, every tree module's monomorphisations)"
+echo "### tree-mixture driver (graphspn_runtime::__private::tree and SoftF32's out-of-line row operations, every tree module's monomorphisations)"
 echo
 for t in "${TARGETS[@]}"; do
     for p in "${PROFILES[@]}"; do

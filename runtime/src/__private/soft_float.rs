@@ -1,4 +1,4 @@
-//! [`SoftF32`]: an `f32` lane for targets without an FPU whose multiply, add and
+//! [`SoftF32`]: an `f32` lane for targets without an FPU whose multiply, add, divide and
 //! compares take integer fast paths for the values tree-mixture passes compute —
 //! non-negative, finite, normal or zero — and give exactly the IEEE-754 results
 //! (round to nearest, ties to even) of `f32` arithmetic. Every other operand (negative,
