@@ -460,6 +460,43 @@ mod tests {
         }
         let mut zeros = [SoftF32(0.0); 3];
         assert_eq!(SoftF32::norm_by_max(&mut zeros), Some(0));
+        // A subnormal or infinite largest entry is left to the float path.
+        for top in [f32::MIN_POSITIVE / 4.0, f32::INFINITY] {
+            let mut row = [SoftF32(0.0), SoftF32(top)];
+            assert_eq!(SoftF32::norm_by_max(&mut row), None, "{top:e}");
+        }
+    }
+
+    /// `SoftF32`'s fixed-point message is `message_bits` on its rows' bits: within the
+    /// bound of `f64`'s `ψ·b`, normalised.
+    #[test]
+    fn fixed_messages_of_soft_rows() {
+        use super::super::tree::message_error;
+        const C: usize = 4;
+        let psi: [[u32; C]; C] = [
+            [u32::MAX, 1 << 31, 1 << 30, 1 << 29],
+            [1 << 28, u32::MAX, 1 << 31, 1 << 30],
+            [1 << 30, 1 << 29, u32::MAX, 1 << 31],
+            [1 << 31, 1 << 30, 1 << 29, u32::MAX],
+        ];
+        let eta = message_error(C, 2f64.powi(-4));
+        let mut g = ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..1000 {
+            let b = [(); C].map(|_| SoftF32((g.next_u32() >> 8) as f32 * 2f32.powi(-30)));
+            let (m, e) = SoftF32::fixed_message(&psi, &b).expect("SoftF32 has the path");
+            let mut sum = 0.0;
+            for (row, x) in psi.iter().zip(&m) {
+                let want: f64 = row
+                    .iter()
+                    .zip(&b)
+                    .map(|(&p, y)| f64::from(p) / 2f64.powi(32) * f64::from(y.0))
+                    .sum();
+                let got = f64::from(x.0) * 2f64.powi(e);
+                assert!((got - want).abs() <= eta * want, "{got:e} vs {want:e}");
+                sum += f64::from(x.0);
+            }
+            assert!((1.0 - 1e-6..2.0 + 1e-6).contains(&sum), "sum {sum}");
+        }
     }
 
     /// Ties to even, carries out of the significand and the normal range's edges.

@@ -116,6 +116,20 @@ mod tests {
 
     use super::*;
 
+    /// The bound's formula: `2^-24 + (2C + 1/4)·2^-31/ψ_min`, exactly.
+    #[test]
+    fn the_bound_is_the_documented_formula() {
+        assert_eq!(
+            message_error(10, 1.0),
+            2f64.powi(-24) + 20.25 * 2f64.powi(-31)
+        );
+        assert_eq!(
+            message_error(3, 0.25),
+            2f64.powi(-24) + 6.25 * 2f64.powi(-29)
+        );
+        assert_eq!(MAX_MESSAGE_ERROR, 2f64.powi(-12));
+    }
+
     /// Random matrices and rows (entries spread over many binades, zeros, one-hot
     /// rows, tiny rows) against `f64`: every entry within the bound `η`, and the
     /// normalisation right (sum in `[1, 2)` up to the entries' rounding).

@@ -216,7 +216,8 @@ pub(crate) fn argmax<V: Lanes, const K: usize>(a: &[V; K]) -> u16 {
 /// largest entry lies in `[1/C, 2)`); returns the exponent `e` (the row before = the
 /// row after `· 2^e`). A zero (or NaN) row is left as it is (`e = 0`). The row's sum
 /// must lie in `[2^(MIN_EXP+1), 2^-MIN_EXP)` (every row the passes normalise does: see
-/// the module docs).
+/// the module docs). Lanes that rescale in integers ([`Lanes::norm_by_max`]: `SoftF32`)
+/// put the largest entry in `[1, 2)` instead.
 #[inline(always)]
 pub(crate) fn norm<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
     if let Some(e) = V::norm_by_max(a) {

@@ -72,8 +72,8 @@ fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
 /// height + 1): the belief of every place (`φ` of the place, then its children's
 /// messages multiplied in as they complete, exactly the order of [`belief`]) goes to
 /// `root(v, b)` for a root and to `message(v, b)` otherwise, whose result (normalised,
-/// with its exponent) is multiplied into the parent's belief. Returns the sum of the exponents of every
-/// normalisation.
+/// with its exponent) is multiplied into the parent's belief. Returns the sum of the
+/// exponents of every normalisation.
 #[inline(always)]
 fn sweep<V: Lanes, const K: usize, const H: usize>(
     src: &dyn Factors<V, K>,
