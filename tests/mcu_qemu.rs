@@ -580,6 +580,16 @@ fn call_value(target: &str, m: &MapReport, i: usize) -> f64 {
     })))
 }
 
+/// The largest absolute difference between the firmware's marginals (`f32` bits) and
+/// a reference's.
+fn largest_marginal_error(got: &[Vec<u32>], want: &[Vec<f64>]) -> f64 {
+    got.iter()
+        .flatten()
+        .zip(want.iter().flatten())
+        .map(|(&g, &w)| (f64::from(f32::from_bits(g)) - w).abs())
+        .fold(0.0, f64::max)
+}
+
 /// [`check_map`] for a tree-mixture module: every call against `TreeInstance` (the
 /// interpreter's instance SPN is checked against it in `generated_trees.rs`).
 fn check_tree_map(target: &str, m: &MapReport, index: u64) {
@@ -600,13 +610,7 @@ fn check_tree_map(target: &str, m: &MapReport, index: u64) {
             .expect("the demo tree model gets fixed-point messages");
         let (ll_bound, marginal_bound) = (TOL + n as f64 * eta, TOL + 4.0 * n as f64 * eta);
         let ll_err = (value(0) - want.mixed.log_likelihood).abs();
-        let marginal_err = m
-            .marginals
-            .iter()
-            .flatten()
-            .zip(want.mixed.probs.iter().flatten())
-            .map(|(&got, &w)| (f64::from(f32::from_bits(got)) - w).abs())
-            .fold(0.0, f64::max);
+        let marginal_err = largest_marginal_error(&m.marginals, &want.mixed.probs);
         eprintln!(
             "{target} {}: fixed-point messages (η = {eta:.2e}), largest errors against TreeInstance: log-likelihood {ll_err:.2e} (bound {ll_bound:.2e}), marginals {marginal_err:.2e} (bound {marginal_bound:.2e})",
             m.name
@@ -708,13 +712,7 @@ fn check_map(target: &str, m: &MapReport, index: u64, host: &HostAnswers) -> usi
     if is_fixed(target) {
         let (ll_bound, marginal_bound) = fixed_bounds(&inst);
         let ll_err = (value(1) - want.log_likelihood).abs();
-        let marginal_err = m
-            .marginals
-            .iter()
-            .flatten()
-            .zip(want.probs.iter().flatten())
-            .map(|(&got, &w)| (f64::from(f32::from_bits(got)) - w).abs())
-            .fold(0.0, f64::max);
+        let marginal_err = largest_marginal_error(&m.marginals, &want.probs);
         eprintln!(
             "{target} {}: fixed-point kernel, largest errors against the interpreter: log-likelihood {ll_err:.2e} (bound {ll_bound:.2e}), marginals {marginal_err:.2e} (bound {marginal_bound:.2e})",
             m.name

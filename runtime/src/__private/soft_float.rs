@@ -14,6 +14,7 @@
 
 use core::ops::{Add, AddAssign, Div, Mul};
 
+use super::Real;
 use super::lanes::Lanes;
 use super::tree::message_bits;
 
@@ -101,12 +102,6 @@ pub fn add_bits(a: u32, b: u32) -> Option<u32> {
     let (m, r) = (s >> 7, s & 0x7f);
     let up = r > 0x40 || (r == 0x40 && (sticky || m & 1 == 1));
     pack(e, m, up)
-}
-
-/// `2^e` for `-126 ≤ e ≤ 127` (a normal `f32`).
-#[inline(always)]
-fn pow2(e: i32) -> f32 {
-    f32::from_bits(((e + 127) as u32) << 23)
 }
 
 /// The bits of `a / b` for non-negative finite normal operands (or `a = 0`) with a
@@ -318,9 +313,9 @@ impl Lanes for SoftF32 {
                 // Zero-or-subnormal input or result: the soft-float multiply, in two
                 // exact steps where `2^-e` alone is not a normal `f32`.
                 *x = SoftF32(if e >= 127 {
-                    slow_mul(slow_mul(x.0, pow2(-64)), pow2(64 - e))
+                    slow_mul(slow_mul(x.0, f32::pow2(-64)), f32::pow2(64 - e))
                 } else {
-                    slow_mul(x.0, pow2(-e))
+                    slow_mul(x.0, f32::pow2(-e))
                 });
             }
         }
