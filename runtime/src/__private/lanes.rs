@@ -113,6 +113,18 @@ pub trait Lanes:
     ) -> Option<([Self; K], i32)> {
         None
     }
+    /// The max-product tree message `max_j ψ(a, j) b(j)` by a Q0.32 matrix, normalised
+    /// to a largest entry in `[1, 2]`, with its exponent; `arg[a]` gets the smallest `j`
+    /// attaining the fixed-point maximum. `None` (and `arg` untouched) for lanes
+    /// without that path, as [`Lanes::fixed_message`].
+    #[inline(always)]
+    fn fixed_max_message<const C: usize, const K: usize>(
+        _psi: &[[u32; C]; C],
+        _b: &[Self; K],
+        _arg: &mut [u8; C],
+    ) -> Option<([Self; K], i32)> {
+        None
+    }
 }
 
 /// Classes `from..` of [`Lanes::from_rows`], lane by lane.

@@ -15,7 +15,7 @@
 use core::ops::{Add, AddAssign, Div, Mul};
 
 use super::lanes::Lanes;
-use super::tree::message_bits;
+use super::tree::{max_message_bits, message_bits};
 
 /// An `f32` whose arithmetic is done in integers where the operands allow it (see the
 /// module docs); bit-identical to `f32` arithmetic.
@@ -333,18 +333,38 @@ impl Lanes for SoftF32 {
         psi: &[[u32; C]; C],
         b: &[Self; K],
     ) -> Option<([Self; K], i32)> {
-        // One class per lane: `K = C`.
-        let mut bits = [0u32; C];
-        for (o, x) in bits.iter_mut().zip(b) {
-            *o = x.0.to_bits();
-        }
-        let (m, e) = message_bits(psi, &bits);
-        let mut out = [SoftF32(0.0); K];
-        for (o, &x) in out.iter_mut().zip(&m) {
-            *o = SoftF32(f32::from_bits(x));
-        }
-        Some((out, e))
+        let (m, e) = message_bits(psi, &row_bits(b));
+        Some((soft_row(&m), e))
     }
+    #[inline(never)]
+    fn fixed_max_message<const C: usize, const K: usize>(
+        psi: &[[u32; C]; C],
+        b: &[Self; K],
+        arg: &mut [u8; C],
+    ) -> Option<([Self; K], i32)> {
+        let (m, e) = max_message_bits(psi, &row_bits(b), arg);
+        Some((soft_row(&m), e))
+    }
+}
+
+/// The bits of a row of `SoftF32` values, one class per lane (`K = C`).
+#[inline(always)]
+fn row_bits<const C: usize, const K: usize>(b: &[SoftF32; K]) -> [u32; C] {
+    let mut bits = [0u32; C];
+    for (o, x) in bits.iter_mut().zip(b) {
+        *o = x.0.to_bits();
+    }
+    bits
+}
+
+/// A row of `f32` bits as `SoftF32` values (see [`row_bits`]).
+#[inline(always)]
+fn soft_row<const C: usize, const K: usize>(m: &[u32; C]) -> [SoftF32; K] {
+    let mut out = [SoftF32(0.0); K];
+    for (o, &x) in out.iter_mut().zip(m) {
+        *o = SoftF32(f32::from_bits(x));
+    }
+    out
 }
 
 #[cfg(test)]
@@ -470,7 +490,8 @@ mod tests {
     }
 
     /// `SoftF32`'s fixed-point message is `message_bits` on its rows' bits: within the
-    /// bound of `f64`'s `ψ·b`, normalised.
+    /// bound of `f64`'s `ψ·b`, normalised; its max-product message is
+    /// `max_message_bits`'s.
     #[test]
     fn fixed_messages_of_soft_rows() {
         use super::super::tree::message_error;
@@ -498,6 +519,14 @@ mod tests {
                 sum += f64::from(x.0);
             }
             assert!((1.0 - 1e-6..2.0 + 1e-6).contains(&sum), "sum {sum}");
+            let mut arg = [u8::MAX; C];
+            let (m, e) = SoftF32::fixed_max_message(&psi, &b, &mut arg).expect("the max path");
+            let mut want_arg = [0u8; C];
+            let want = max_message_bits(&psi, &b.map(|x| x.0.to_bits()), &mut want_arg);
+            assert_eq!(
+                (m.map(|x| x.0.to_bits()), e, arg),
+                (want.0, want.1, want_arg)
+            );
         }
     }
 

@@ -293,8 +293,8 @@ pub(super) fn report(
     // Calls, saved registers and the accumulators of every forest; a pass's row
     // temporaries (belief, message, evidence factor, its power, the parent's row,
     // the division, the downward message; a fixed-point message's scratch is six
-    // rows: the row's bits, its Q0.32 copy, 64-bit sums, the result) with room for
-    // spills.
+    // rows: the row's bits, its Q0.32 copy, 64-bit sums, the result, and for a
+    // max-product one its arg-max bytes) with room for spills.
     // A table entry is a row and its exponent, padded to the row's alignment.
     let align = (cx.width * s).max(4);
     let table = n * (row + 4).next_multiple_of(align);

@@ -341,6 +341,35 @@ pub(crate) fn down_message<V: Lanes, const C: usize, const K: usize>(
     }
 }
 
+/// The max-product upward message of a place whose belief is `b`: `max_j ψ_up(a, j)
+/// b(j)` normalised, and its exponent; with `arg`, `arg[a]` gets the smallest `j`
+/// attaining it. Fixed point as in [`up_message`] (within `η`: see
+/// `fixed_messages.rs`), else [`maxvec`] / [`argvec`] and [`norm`].
+#[inline(always)]
+pub(crate) fn max_message<V: Lanes, const C: usize, const K: usize>(
+    m: &TreeModel<V, C, K>,
+    b: &[V; K],
+    arg: Option<&mut [u8; C]>,
+) -> ([V; K], i32) {
+    let mut spare = [0u8; C];
+    let wanted = arg.is_some();
+    let arg = arg.unwrap_or(&mut spare);
+    if let Some(r) = m
+        .fixed
+        .as_ref()
+        .and_then(|fx| V::fixed_max_message(&fx.up, b, arg))
+    {
+        return r;
+    }
+    let mut msg = if wanted {
+        argvec(&m.psi_up, b, arg)
+    } else {
+        maxvec(&m.psi_up, b)
+    };
+    let e = norm(&mut msg);
+    (msg, e)
+}
+
 /// Max-product `ψ·b`: `m(a) = max_j ψ(a, j) b(j)`.
 #[inline(always)]
 pub(crate) fn maxvec<V: Lanes, const C: usize, const K: usize>(

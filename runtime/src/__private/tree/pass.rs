@@ -7,8 +7,8 @@
 
 use super::super::{Acc, Lanes, Real, above, best, mix};
 use super::{
-    Cached, Factors, Forest, Rows, TreeModel, argmax, argvec, belief, down_message, hmax, hsum,
-    maxvec, mul, mul_norm, norm, pack, up_message,
+    Cached, Factors, Forest, Rows, TreeModel, argmax, belief, down_message, hmax, hsum,
+    max_message, mul, mul_norm, pack, up_message,
 };
 use crate::EvidenceError;
 
@@ -125,13 +125,6 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
     k
 }
 
-/// A row normalised by [`norm`], with its exponent.
-#[inline(always)]
-fn normed<V: Lanes, const K: usize>(mut r: [V; K]) -> ([V; K], i32) {
-    let e = norm(&mut r);
-    (r, e)
-}
-
 /// `P_t(α)`, the value of forest `f` (`max`: the max-product value `max_y P_t(y) Π
 /// α^γ`), in one post-order sweep with a stack of `H` rows.
 #[inline(never)]
@@ -148,7 +141,7 @@ fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
         m.root_unary(),
         |_, b| {
             if max {
-                normed(maxvec(&m.psi_up, b))
+                max_message(m, b, None)
             } else {
                 up_message(m, b)
             }
@@ -442,7 +435,7 @@ fn mpe_labels<V: Lanes, const C: usize, const K: usize, const N: usize, const H:
         f,
         m.root_unary(),
         |v, b| match arg.get_mut(v) {
-            Some(a) => normed(argvec(&m.psi_up, b, a)),
+            Some(a) => max_message(m, b, Some(a)),
             None => ([V::ZERO; K], 0),
         },
         |v, b| {
