@@ -300,7 +300,9 @@ pub(super) fn report(
     let table = n * (row + 4).next_multiple_of(align);
     let base = 1024 + t * (24 + s);
     let temps = 16 * row + 512;
-    let value = h * (row + 1) + temps;
+    // SIMD code sweeps two forests side by side for values (two stacks of rows).
+    let sweeps = if cx.width > 1 { 2 } else { 1 };
+    let value = sweeps * (h * (row + 1) + temps);
     let log_likelihood = base + value;
     let marginals = base + n * row + h * row + temps;
     let mpe = base + value + n * c;

@@ -305,7 +305,25 @@ pub(crate) fn matvec<V: Lanes, const C: usize, const K: usize>(
     psi: &[[V; K]; C],
     b: &[V; K],
 ) -> [V; K] {
-    columns(psi, b, |o, c, s| c.mul_add(s, o))
+    if V::WIDTH == 1 {
+        return columns(psi, b, |o, c, s| c.mul_add(s, o));
+    }
+    // SIMD: even and odd classes in two accumulators (half the dependent chain of
+    // multiply-adds), added at the end.
+    let mut m = [[V::ZERO; K]; 2];
+    each_class::<V, K, C>(b, |j, x| {
+        if let (Some(col), Some(acc)) = (psi.get(j), m.get_mut(j % 2)) {
+            let s = V::splat(x);
+            for (o, &c) in acc.iter_mut().zip(col) {
+                *o = c.mul_add(s, *o);
+            }
+        }
+    });
+    let [mut even, odd] = m;
+    for (o, &x) in even.iter_mut().zip(&odd) {
+        *o += x;
+    }
+    even
 }
 
 /// The upward message of a place whose belief is `b`: `ψ_up·b` normalised, and its

@@ -82,22 +82,54 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
     mut message: impl FnMut(usize, &[V; K]) -> ([V; K], i32),
     mut root: impl FnMut(usize, &[V; K]),
 ) -> i32 {
-    let mut slots = [[V::ZERO; K]; H];
-    let mut has = [false; H];
-    let mut k = 0i32;
-    let factor = |v: usize, k: &mut i32| {
-        let (b, eb) = src.factor(v);
-        *k = k.wrapping_add(eb);
-        b
-    };
-    for &[v, d] in f.post {
+    let mut s = Sweep::<V, K, H>::new();
+    for &vd in f.post {
+        s.step(src, f, unary, vd, &mut message, &mut root);
+    }
+    s.k
+}
+
+/// The state of a [`sweep`]: the rows of the places whose parent is not complete yet
+/// (one per depth) and the sum of the exponents so far.
+struct Sweep<V: Lanes, const K: usize, const H: usize> {
+    slots: [[V; K]; H],
+    has: [bool; H],
+    k: i32,
+}
+
+impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
+    #[inline(always)]
+    fn new() -> Self {
+        Sweep {
+            slots: [[V::ZERO; K]; H],
+            has: [false; H],
+            k: 0,
+        }
+    }
+
+    /// One place `[v, d]` of the post-order (see [`sweep`]).
+    #[inline(always)]
+    fn step(
+        &mut self,
+        src: &dyn Factors<V, K>,
+        f: &Forest<V::Scalar>,
+        unary: Option<&[V; K]>,
+        [v, d]: [u16; 2],
+        message: &mut impl FnMut(usize, &[V; K]) -> ([V; K], i32),
+        root: &mut impl FnMut(usize, &[V; K]),
+    ) {
         let (v, d) = (usize::from(v), usize::from(d));
-        let b = match (has.get_mut(d + 1), slots.get(d + 1)) {
+        let factor = |v: usize, k: &mut i32| {
+            let (b, eb) = src.factor(v);
+            *k = k.wrapping_add(eb);
+            b
+        };
+        let b = match (self.has.get_mut(d + 1), self.slots.get(d + 1)) {
             (Some(h), Some(s)) if *h => {
                 *h = false;
                 *s
             }
-            _ => factor(v, &mut k),
+            _ => factor(v, &mut self.k),
         };
         if d == 0 {
             let mut r = b;
@@ -105,24 +137,23 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
                 mul(&mut r, u);
             }
             root(v, &r);
-            continue;
+            return;
         }
         let (msg, e) = message(v, &b);
-        k = k.wrapping_add(e);
-        if let (Some(h), Some(s)) = (has.get_mut(d), slots.get_mut(d)) {
+        self.k = self.k.wrapping_add(e);
+        if let (Some(h), Some(s)) = (self.has.get_mut(d), self.slots.get_mut(d)) {
             // The parent's row so far (its `φ` for its first child), times the message,
             // written back once.
             let mut p = if *h {
                 *s
             } else {
                 *h = true;
-                factor(usize::from(f.parent_of(v)), &mut k)
+                factor(usize::from(f.parent_of(v)), &mut self.k)
             };
-            k = k.wrapping_add(mul_norm(&mut p, &msg));
+            self.k = self.k.wrapping_add(mul_norm(&mut p, &msg));
             *s = p;
         }
     }
-    k
 }
 
 /// `P_t(α)`, the value of forest `f` (`max`: the max-product value `max_y P_t(y) Π
@@ -151,7 +182,45 @@ fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
     over_z(acc, k, f)
 }
 
-/// The values of every forest (see [`tree_value`]).
+/// [`tree_value`] of two forests in one loop, a place of each per step: two
+/// independent chains of dependent operations side by side (SIMD hosts, where each
+/// chain alone leaves most of the core idle).
+#[inline(never)]
+fn tree_values_2<V: Lanes, const C: usize, const K: usize, const H: usize>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    fs: [&Forest<V::Scalar>; 2],
+    max: bool,
+) -> [Acc<V::Scalar>; 2] {
+    let mut accs = [Acc::ONE; 2];
+    let [a0, a1] = &mut accs;
+    let mut message = |_: usize, b: &[V; K]| {
+        if max {
+            max_message(m, b, None)
+        } else {
+            up_message(m, b)
+        }
+    };
+    let mut message1 = message;
+    let mut root0 = |_: usize, b: &[V; K]| a0.mul(if max { hmax(b) } else { hsum(b) });
+    let mut root1 = |_: usize, b: &[V; K]| a1.mul(if max { hmax(b) } else { hsum(b) });
+    let (mut s0, mut s1) = (Sweep::<V, K, H>::new(), Sweep::<V, K, H>::new());
+    let [f0, f1] = fs;
+    let unary = m.root_unary();
+    let n = f0.post.len().max(f1.post.len());
+    for i in 0..n {
+        if let Some(&vd) = f0.post.get(i) {
+            s0.step(src, f0, unary, vd, &mut message, &mut root0);
+        }
+        if let Some(&vd) = f1.post.get(i) {
+            s1.step(src, f1, unary, vd, &mut message1, &mut root1);
+        }
+    }
+    [over_z(accs[0], s0.k, f0), over_z(accs[1], s1.k, f1)]
+}
+
+/// The values of every forest (see [`tree_value`]; on SIMD hosts two at a time, see
+/// [`tree_values_2`]).
 #[inline(always)]
 fn values<V: Lanes, const C: usize, const K: usize, const H: usize, const T: usize>(
     m: &TreeModel<V, C, K>,
@@ -159,6 +228,21 @@ fn values<V: Lanes, const C: usize, const K: usize, const H: usize, const T: usi
     max: bool,
 ) -> [Acc<V::Scalar>; T] {
     let mut accs = [Acc::ONE; T];
+    if V::WIDTH > 1 {
+        for (a, f) in accs.chunks_mut(2).zip(m.forests.chunks(2)) {
+            match (a, f) {
+                ([a0, a1], [f0, f1]) => {
+                    [*a0, *a1] = tree_values_2::<V, C, K, H>(m, src, [f0, f1], max);
+                }
+                (a, f) => {
+                    for (a, f) in a.iter_mut().zip(f) {
+                        *a = tree_value::<V, C, K, H>(m, src, f, max);
+                    }
+                }
+            }
+        }
+        return accs;
+    }
     for (a, f) in accs.iter_mut().zip(m.forests) {
         *a = tree_value::<V, C, K, H>(m, src, f, max);
     }
