@@ -239,3 +239,36 @@ fn normalised_conditional_and_coupling_follow_their_formulas() {
         .is_err()
     );
 }
+
+/// The names that validation tables and reports print, one per normalisation.
+#[test]
+fn normalisations_have_their_documented_names() {
+    let names: Vec<&str> = Normalisation::ALL.iter().map(|n| n.name()).collect();
+    assert_eq!(names, ["joint", "conditional", "normalised", "pmi"]);
+}
+
+/// Evidence rows with zero entries are valid (only negative, non-finite and all-zero
+/// rows are refused, naming the place), and a map whose class set is not the model's
+/// is refused.
+#[test]
+fn evidence_and_class_checks_refuse_only_bad_input() {
+    let m2 = Mrf2::train(&[hand_map()], &CooccurrenceParams::default()).unwrap();
+    let mut ev = vec![vec![0.2, 0.3, 0.5]; 4];
+    ev[1] = vec![0.0, 1.0, 0.0];
+    let fg = m2.factor_graph(&hand_map(), Some(&ev)).unwrap();
+    assert_eq!(fg.factors()[5].table(), [0.0, 1.0, 0.0]);
+    for row in [
+        vec![-0.1, 0.5, 0.6],
+        vec![f64::NAN, 0.5, 0.5],
+        vec![0.2, f64::INFINITY, 0.5],
+    ] {
+        let mut bad = ev.clone();
+        bad[3] = row;
+        let err = m2.factor_graph(&hand_map(), Some(&bad)).unwrap_err();
+        assert!(err.to_string().contains("place 103"), "{err}");
+    }
+    let mut four = hand_map();
+    four.classes = ClassSet::new(vec!["A".into(), "B".into(), "C".into(), "D".into()]).unwrap();
+    let err = m2.factor_graph(&four, None).unwrap_err();
+    assert!(err.to_string().contains("4 classes, the model 3"), "{err}");
+}
