@@ -83,18 +83,19 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
     mut root: impl FnMut(usize, &[V; K]),
 ) -> i32 {
     let mut s = Sweep::<V, K, H>::new();
+    let mut k = 0i32;
     for &vd in f.post {
-        s.step(src, f, unary, vd, &mut message, &mut root);
+        s.step(src, f, unary, vd, &mut k, &mut message, &mut root);
     }
-    s.k
+    k
 }
 
 /// The state of a [`sweep`]: the rows of the places whose parent is not complete yet
-/// (one per depth) and the sum of the exponents so far.
+/// (one per depth). The sum of the exponents is the caller's (`k` of [`Sweep::step`]:
+/// a local there, which microcontroller code keeps in a register).
 struct Sweep<V: Lanes, const K: usize, const H: usize> {
     slots: [[V; K]; H],
     has: [bool; H],
-    k: i32,
 }
 
 impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
@@ -103,11 +104,11 @@ impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
         Sweep {
             slots: [[V::ZERO; K]; H],
             has: [false; H],
-            k: 0,
         }
     }
 
-    /// One place `[v, d]` of the post-order (see [`sweep`]).
+    /// One place `[v, d]` of the post-order (see [`sweep`]); adds the exponents of its
+    /// normalisations to `k`.
     #[inline(always)]
     fn step(
         &mut self,
@@ -115,6 +116,7 @@ impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
         f: &Forest<V::Scalar>,
         unary: Option<&[V; K]>,
         [v, d]: [u16; 2],
+        k: &mut i32,
         message: &mut impl FnMut(usize, &[V; K]) -> ([V; K], i32),
         root: &mut impl FnMut(usize, &[V; K]),
     ) {
@@ -129,7 +131,7 @@ impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
                 *h = false;
                 *s
             }
-            _ => factor(v, &mut self.k),
+            _ => factor(v, k),
         };
         if d == 0 {
             let mut r = b;
@@ -140,7 +142,7 @@ impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
             return;
         }
         let (msg, e) = message(v, &b);
-        self.k = self.k.wrapping_add(e);
+        *k = k.wrapping_add(e);
         if let (Some(h), Some(s)) = (self.has.get_mut(d), self.slots.get_mut(d)) {
             // The parent's row so far (its `φ` for its first child), times the message,
             // written back once.
@@ -148,9 +150,9 @@ impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
                 *s
             } else {
                 *h = true;
-                factor(usize::from(f.parent_of(v)), &mut self.k)
+                factor(usize::from(f.parent_of(v)), k)
             };
-            self.k = self.k.wrapping_add(mul_norm(&mut p, &msg));
+            *k = k.wrapping_add(mul_norm(&mut p, &msg));
             *s = p;
         }
     }
@@ -205,18 +207,19 @@ fn tree_values_2<V: Lanes, const C: usize, const K: usize, const H: usize>(
     let mut root0 = |_: usize, b: &[V; K]| a0.mul(if max { hmax(b) } else { hsum(b) });
     let mut root1 = |_: usize, b: &[V; K]| a1.mul(if max { hmax(b) } else { hsum(b) });
     let (mut s0, mut s1) = (Sweep::<V, K, H>::new(), Sweep::<V, K, H>::new());
+    let (mut k0, mut k1) = (0i32, 0i32);
     let [f0, f1] = fs;
     let unary = m.root_unary();
     let n = f0.post.len().max(f1.post.len());
     for i in 0..n {
         if let Some(&vd) = f0.post.get(i) {
-            s0.step(src, f0, unary, vd, &mut message, &mut root0);
+            s0.step(src, f0, unary, vd, &mut k0, &mut message, &mut root0);
         }
         if let Some(&vd) = f1.post.get(i) {
-            s1.step(src, f1, unary, vd, &mut message1, &mut root1);
+            s1.step(src, f1, unary, vd, &mut k1, &mut message1, &mut root1);
         }
     }
-    [over_z(accs[0], s0.k, f0), over_z(accs[1], s1.k, f1)]
+    [over_z(accs[0], k0, f0), over_z(accs[1], k1, f1)]
 }
 
 /// The values of every forest (see [`tree_value`]; on SIMD hosts two at a time, see
