@@ -85,10 +85,19 @@ fn sweep<V: Lanes, const K: usize, const H: usize>(
     let mut s = Sweep::<V, K, H>::new();
     let mut k = 0i32;
     for &vd in f.post {
-        s.step(src, f, unary, vd, &mut k, &mut message, &mut root);
+        s.step((src, f, unary), vd, &mut k, &mut message, &mut root);
     }
     k
 }
+
+/// What a [`sweep`] runs over: the evidence factors, the forest and the roots' unary
+/// row (three arguments, not fields of [`Sweep`]: as fields they cost Cortex-M4F code
+/// 1.5% more instructions).
+type SweepOf<'a, V, const K: usize> = (
+    &'a dyn Factors<V, K>,
+    &'a Forest<<V as Lanes>::Scalar>,
+    Option<&'a [V; K]>,
+);
 
 /// The state of a [`sweep`]: the rows of the places whose parent is not complete yet
 /// (one per depth). The sum of the exponents is the caller's (`k` of [`Sweep::step`]:
@@ -107,14 +116,12 @@ impl<V: Lanes, const K: usize, const H: usize> Sweep<V, K, H> {
         }
     }
 
-    /// One place `[v, d]` of the post-order (see [`sweep`]); adds the exponents of its
-    /// normalisations to `k`.
+    /// One place `[v, d]` of the post-order of forest `f` (see [`sweep`]); adds the
+    /// exponents of its normalisations to `k`.
     #[inline(always)]
     fn step(
         &mut self,
-        src: &dyn Factors<V, K>,
-        f: &Forest<V::Scalar>,
-        unary: Option<&[V; K]>,
+        (src, f, unary): SweepOf<'_, V, K>,
         [v, d]: [u16; 2],
         k: &mut i32,
         message: &mut impl FnMut(usize, &[V; K]) -> ([V; K], i32),
@@ -213,10 +220,10 @@ fn tree_values_2<V: Lanes, const C: usize, const K: usize, const H: usize>(
     let n = f0.post.len().max(f1.post.len());
     for i in 0..n {
         if let Some(&vd) = f0.post.get(i) {
-            s0.step(src, f0, unary, vd, &mut k0, &mut message, &mut root0);
+            s0.step((src, f0, unary), vd, &mut k0, &mut message, &mut root0);
         }
         if let Some(&vd) = f1.post.get(i) {
-            s1.step(src, f1, unary, vd, &mut k1, &mut message1, &mut root1);
+            s1.step((src, f1, unary), vd, &mut k1, &mut message1, &mut root1);
         }
     }
     [over_z(accs[0], k0, f0), over_z(accs[1], k1, f1)]
