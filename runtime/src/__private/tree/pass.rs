@@ -179,16 +179,31 @@ fn tree_value<V: Lanes, const C: usize, const K: usize, const H: usize>(
         src,
         f,
         m.root_unary(),
-        |_, b| {
-            if max {
-                max_message(m, b, None)
-            } else {
-                up_message(m, b)
-            }
-        },
-        |_, b| acc.mul(if max { hmax(b) } else { hsum(b) }),
+        |_, b| value_message(m, b, max),
+        |_, b| acc.mul(root_value(b, max)),
     );
     over_z(acc, k, f)
+}
+
+/// The upward message of a value sweep: max-product (`max`) or sum-product.
+#[inline(always)]
+fn value_message<V: Lanes, const C: usize, const K: usize>(
+    m: &TreeModel<V, C, K>,
+    b: &[V; K],
+    max: bool,
+) -> ([V; K], i32) {
+    if max {
+        max_message(m, b, None)
+    } else {
+        up_message(m, b)
+    }
+}
+
+/// A root's value in a value sweep: the largest entry of its belief (`max`) or their
+/// sum.
+#[inline(always)]
+fn root_value<V: Lanes, const K: usize>(b: &[V; K], max: bool) -> V::Scalar {
+    if max { hmax(b) } else { hsum(b) }
 }
 
 /// [`tree_value`] of two forests in one loop, a place of each per step: two
@@ -203,16 +218,10 @@ fn tree_values_2<V: Lanes, const C: usize, const K: usize, const H: usize>(
 ) -> [Acc<V::Scalar>; 2] {
     let mut accs = [Acc::ONE; 2];
     let [a0, a1] = &mut accs;
-    let mut message = |_: usize, b: &[V; K]| {
-        if max {
-            max_message(m, b, None)
-        } else {
-            up_message(m, b)
-        }
-    };
+    let mut message = |_: usize, b: &[V; K]| value_message(m, b, max);
     let mut message1 = message;
-    let mut root0 = |_: usize, b: &[V; K]| a0.mul(if max { hmax(b) } else { hsum(b) });
-    let mut root1 = |_: usize, b: &[V; K]| a1.mul(if max { hmax(b) } else { hsum(b) });
+    let mut root0 = |_: usize, b: &[V; K]| a0.mul(root_value(b, max));
+    let mut root1 = |_: usize, b: &[V; K]| a1.mul(root_value(b, max));
     let (mut s0, mut s1) = (Sweep::<V, K, H>::new(), Sweep::<V, K, H>::new());
     let (mut k0, mut k1) = (0i32, 0i32);
     let [f0, f1] = fs;
