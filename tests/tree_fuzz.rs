@@ -21,6 +21,7 @@ use graphspn::family::ModelFamily;
 use graphspn::map::{ClassSet, Place, TopoMap};
 use graphspn::spn::Mixing;
 use graphspn::treemix::{SpanningTrees, TreeInstance, TreeMixture};
+use graphspn_runtime::__private::parallel_sweeps;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -30,8 +31,15 @@ const STRUCTURES: usize = 40;
 const VECTORS: usize = 120;
 
 /// A random map of `n` places: a random forest of `parts` components (a long path
-/// when `path`), plus some extra edges inside components.
-fn random_map(rng: &mut ChaCha8Rng, n: usize, c: usize, parts: usize, path: bool) -> TopoMap {
+/// when `path`), plus up to `extra` random edges inside components.
+fn random_map(
+    rng: &mut ChaCha8Rng,
+    n: usize,
+    c: usize,
+    parts: usize,
+    path: bool,
+    extra: usize,
+) -> TopoMap {
     let id = |i: usize| 7 + 3 * i as u32;
     let places = (0..n)
         .map(|i| Place {
@@ -55,7 +63,7 @@ fn random_map(rng: &mut ChaCha8Rng, n: usize, c: usize, parts: usize, path: bool
             edges.push((j, i));
         }
     }
-    for _ in 0..rng.random_range(0..=n) {
+    for _ in 0..rng.random_range(0..=extra) {
         let (a, b) = (rng.random_range(0..n), rng.random_range(0..n));
         if a != b && a % parts == b % parts {
             edges.push((a, b));
@@ -123,6 +131,8 @@ struct Paths {
     several_roots: usize,
     deep: usize,
     one_tree: usize,
+    /// SIMD value sweeps of 1, 2 and 4 forests side by side.
+    side_by_side: [usize; 3],
     /// Scalar modules whose deepest entry point computes `φ` in each pass (no table).
     factor_rows: usize,
     /// `SoftF32` modules with fixed-point messages, and with `f32` messages (potentials
@@ -139,7 +149,11 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
         1 => 4,
         _ => rng.random_range(2..=12),
     };
+    // A wide map (many places, shallow spanning trees, 4 or 5 of them): SIMD code then
+    // sweeps four forests side by side.
+    let wide = seed % 11 == 5;
     let n = match seed % 7 {
+        _ if wide => rng.random_range(48..=64),
         0 => 1,
         1 => rng.random_range(2..=8),
         _ => rng.random_range(2..=40),
@@ -149,8 +163,15 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
     } else {
         1
     };
-    let map = random_map(&mut rng, n, c, parts, seed % 9 == 2);
-    let t = rng.random_range(1..=5);
+    let map = random_map(
+        &mut rng,
+        n,
+        c,
+        parts,
+        seed % 9 == 2,
+        if wide { 3 * n } else { n },
+    );
+    let t = rng.random_range(if wide { 4 } else { 1 }..=5);
     let model = random_model(&mut rng, c, t);
     let trees = SpanningTrees::covering(&map, t, seed).unwrap();
     let variant = Variant {
@@ -182,6 +203,18 @@ fn random_case(seed: u64, vectors: usize, paths: &mut Paths) -> TreeCase {
             paths.whole += 1;
         } else {
             paths.padded += 1;
+        }
+        // Forests swept side by side for values: 4, 2, or 1 (see `parallel_sweeps`).
+        let h = trees.forests.iter().map(|f| f.height()).max().unwrap_or(0) + 2;
+        let mut left = t;
+        while left > 0 {
+            let q: usize = match parallel_sweeps(lanes, n, h as usize) {
+                4 if left >= 4 => 4,
+                p if p >= 2 && left >= 2 => 2,
+                _ => 1,
+            };
+            paths.side_by_side[q.ilog2() as usize] += 1;
+            left -= q;
         }
     }
     match model.mixing {
@@ -313,6 +346,7 @@ fn random_tree_mixtures_match_tree_instance_interpreter_and_brute_force() {
             several_roots,
             deep,
             one_tree,
+            side_by_side: [sweep_1, sweep_2, sweep_4],
             factor_rows,
             fixed_messages,
             float_messages,
@@ -333,6 +367,9 @@ fn random_tree_mixtures_match_tree_instance_interpreter_and_brute_force() {
             ("several roots", several_roots),
             ("a deep tree", deep),
             ("one tree", one_tree),
+            ("SIMD value sweeps of one forest", sweep_1),
+            ("SIMD value sweeps of two forests side by side", sweep_2),
+            ("SIMD value sweeps of four forests side by side", sweep_4),
             ("φ computed in each pass", factor_rows),
             ("fixed-point messages", fixed_messages),
             ("f32 messages on SoftF32 rows", float_messages),

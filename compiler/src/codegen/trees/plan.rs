@@ -3,7 +3,7 @@
 //! with depths, parents, children, roots) and `ln Z_t`, and the report (stack bounds,
 //! state and table bytes, multiply-adds).
 
-use graphspn_runtime::__private::{FactorCache, MAX_MESSAGE_ERROR, message_error};
+use graphspn_runtime::__private::{FactorCache, MAX_MESSAGE_ERROR, message_error, parallel_sweeps};
 
 use crate::treemix::{NO_PARENT, RootedForest, SpanningTrees, TreeMixture};
 
@@ -300,9 +300,8 @@ pub(super) fn report(
     let table = n * (row + 4).next_multiple_of(align);
     let base = 1024 + t * (24 + s);
     let temps = 16 * row + 512;
-    // SIMD code sweeps two forests side by side for values (two stacks of rows).
-    let sweeps = if cx.width > 1 { 2 } else { 1 };
-    let value = sweeps * (h * (row + 1) + temps);
+    // SIMD code sweeps forests side by side for values (a stack of rows each).
+    let value = parallel_sweeps(cx.width, n, h) * (h * (row + 1) + temps);
     let log_likelihood = base + value;
     let marginals = base + n * row + h * row + temps;
     let mpe = base + value + n * c;

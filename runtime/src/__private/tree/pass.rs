@@ -206,64 +206,100 @@ fn root_value<V: Lanes, const K: usize>(b: &[V; K], max: bool) -> V::Scalar {
     if max { hmax(b) } else { hsum(b) }
 }
 
-/// [`tree_value`] of two forests in one loop, a place of each per step: two
-/// independent chains of dependent operations side by side (SIMD hosts, where each
-/// chain alone leaves most of the core idle).
-#[inline(never)]
-fn tree_values_2<V: Lanes, const C: usize, const K: usize, const H: usize>(
-    m: &TreeModel<V, C, K>,
-    src: &dyn Factors<V, K>,
-    fs: [&Forest<V::Scalar>; 2],
-    max: bool,
-) -> [Acc<V::Scalar>; 2] {
-    let mut accs = [Acc::ONE; 2];
-    let [a0, a1] = &mut accs;
-    let mut message = |_: usize, b: &[V; K]| value_message(m, b, max);
-    let mut message1 = message;
-    let mut root0 = |_: usize, b: &[V; K]| a0.mul(root_value(b, max));
-    let mut root1 = |_: usize, b: &[V; K]| a1.mul(root_value(b, max));
-    let (mut s0, mut s1) = (Sweep::<V, K, H>::new(), Sweep::<V, K, H>::new());
-    let (mut k0, mut k1) = (0i32, 0i32);
-    let [f0, f1] = fs;
-    let unary = m.root_unary();
-    let n = f0.post.len().max(f1.post.len());
-    for i in 0..n {
-        if let Some(&vd) = f0.post.get(i) {
-            s0.step((src, f0, unary), vd, &mut k0, &mut message, &mut root0);
-        }
-        if let Some(&vd) = f1.post.get(i) {
-            s1.step((src, f1, unary), vd, &mut k1, &mut message1, &mut root1);
-        }
+/// How many forests a value sweep runs side by side (see [`tree_values_n`]): one in
+/// scalar code (`lanes` = 1: microcontrollers); on SIMD hosts four, or two, as long as
+/// their stacks of rows (`rows` = the largest height + 2 each) hold no more rows than
+/// the map has places, so an entry point's stack stays near that of `marginals`
+/// (which keeps a row per place); the generator's stack bound counts the same number.
+pub const fn parallel_sweeps(lanes: usize, places: usize, rows: usize) -> usize {
+    if lanes == 1 {
+        1
+    } else if 4 * rows <= places {
+        4
+    } else if 2 * rows <= places {
+        2
+    } else {
+        1
     }
-    [over_z(accs[0], k0, f0), over_z(accs[1], k1, f1)]
 }
 
-/// The values of every forest (see [`tree_value`]; on SIMD hosts two at a time, see
-/// [`tree_values_2`]).
+/// [`tree_value`] of `P` forests in one loop, a place of each per step: `P`
+/// independent chains of dependent operations side by side (SIMD hosts, where each
+/// chain alone leaves most of the core idle: 4 forests take 0.77× the time of one at
+/// a time at 230 places).
+#[inline(never)]
+fn tree_values_n<V: Lanes, const C: usize, const K: usize, const H: usize, const P: usize>(
+    m: &TreeModel<V, C, K>,
+    src: &dyn Factors<V, K>,
+    fs: [&Forest<V::Scalar>; P],
+    max: bool,
+) -> [Acc<V::Scalar>; P] {
+    let mut accs = [Acc::ONE; P];
+    let mut sweeps = [(); P].map(|_| Sweep::<V, K, H>::new());
+    let mut ks = [0i32; P];
+    let unary = m.root_unary();
+    let n = fs.iter().map(|f| f.post.len()).max().unwrap_or(0);
+    for i in 0..n {
+        for (((s, k), acc), f) in sweeps.iter_mut().zip(&mut ks).zip(&mut accs).zip(fs) {
+            if let Some(&vd) = f.post.get(i) {
+                s.step(
+                    (src, f, unary),
+                    vd,
+                    k,
+                    &mut |_, b| value_message(m, b, max),
+                    &mut |_, b| acc.mul(root_value(b, max)),
+                );
+            }
+        }
+    }
+    for ((a, &k), f) in accs.iter_mut().zip(&ks).zip(fs) {
+        *a = over_z(*a, k, f);
+    }
+    accs
+}
+
+/// The values of every forest (see [`tree_value`]; on SIMD hosts [`parallel_sweeps`]
+/// at a time, see [`tree_values_n`]).
 #[inline(always)]
-fn values<V: Lanes, const C: usize, const K: usize, const H: usize, const T: usize>(
+fn values<
+    V: Lanes,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+    const H: usize,
+    const T: usize,
+>(
     m: &TreeModel<V, C, K>,
     src: &dyn Factors<V, K>,
     max: bool,
 ) -> [Acc<V::Scalar>; T] {
     let mut accs = [Acc::ONE; T];
-    if V::WIDTH > 1 {
-        for (a, f) in accs.chunks_mut(2).zip(m.forests.chunks(2)) {
-            match (a, f) {
-                ([a0, a1], [f0, f1]) => {
-                    [*a0, *a1] = tree_values_2::<V, C, K, H>(m, src, [f0, f1], max);
-                }
-                (a, f) => {
-                    for (a, f) in a.iter_mut().zip(f) {
-                        *a = tree_value::<V, C, K, H>(m, src, f, max);
-                    }
-                }
+    let p = parallel_sweeps(V::WIDTH, N, H);
+    let mut i = 0;
+    while i < T {
+        let left = T - i;
+        let q = if p >= 4 && left >= 4 {
+            4
+        } else if p >= 2 && left >= 2 {
+            2
+        } else {
+            1
+        };
+        let (Some(a), Some(f)) = (accs.get_mut(i..i + q), m.forests.get(i..i + q)) else {
+            break;
+        };
+        match (a, f) {
+            ([a0, a1, a2, a3], [f0, f1, f2, f3]) => {
+                [*a0, *a1, *a2, *a3] =
+                    tree_values_n::<V, C, K, H, 4>(m, src, [f0, f1, f2, f3], max);
             }
+            ([a0, a1], [f0, f1]) => {
+                [*a0, *a1] = tree_values_n::<V, C, K, H, 2>(m, src, [f0, f1], max);
+            }
+            ([a0], [f0]) => *a0 = tree_value::<V, C, K, H>(m, src, f0, max),
+            _ => {}
         }
-        return accs;
-    }
-    for (a, f) in accs.iter_mut().zip(m.forests) {
-        *a = tree_value::<V, C, K, H>(m, src, f, max);
+        i += q;
     }
     accs
 }
@@ -283,7 +319,7 @@ pub fn tree_log_likelihood<
     labels: &[u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
     let accs = with_factors(m, e, Some(labels), m.cache.values, |src| {
-        values::<V, C, K, H, T>(m, src, false)
+        values::<V, C, K, N, H, T>(m, src, false)
     });
     match mix(&accs) {
         Some((l, _)) if l > V::Scalar::NEG_INFINITY => Ok(l),
@@ -580,7 +616,7 @@ pub fn tree_mpe<
     labels: &mut [u16; N],
 ) -> Result<V::Scalar, EvidenceError> {
     with_factors(m, e, None, m.cache.values, |src| {
-        let accs = values::<V, C, K, H, T>(m, src, true);
+        let accs = values::<V, C, K, N, H, T>(m, src, true);
         let (Some(t), Some(f)) = (best(&accs), best(&accs).and_then(|t| m.forests.get(t))) else {
             return Err(EvidenceError::ZeroLikelihood);
         };
