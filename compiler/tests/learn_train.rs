@@ -611,3 +611,89 @@ fn bad_weights_are_refused() {
 fn uniform_spn_2x3() -> graphspn_compiler::spn::Spn {
     graphspn_compiler::learn::uniform_spn(2, 3).unwrap()
 }
+
+/// One epoch of soft EM is the documented M-step on the exact expected counts: `w_e ∝
+/// Σ_n w_e · V_child(x_n) · ∂V/∂V_sum(x_n) / V(x_n) + s`, with the counts from an
+/// independent forward/backward pass in linear space — through product nodes too (the
+/// dense structure has sums under products).
+#[test]
+fn soft_em_step_is_the_m_step_on_expected_counts() {
+    let (n, c, s) = (5usize, 3u16, 0.5);
+    let table = mixture_table(n, c, 2, 77);
+    let samples = sample_table(&table, n, c, 400, 77);
+    let start = dense_structure(n, u32::from(c), &DenseParams::default(), 8).unwrap();
+    let under_product = start.nodes.iter().any(|nd| match nd {
+        Node::Product { children } => children
+            .iter()
+            .any(|&k| matches!(start.nodes[k as usize], Node::Sum { .. })),
+        _ => false,
+    });
+    assert!(under_product, "the test needs a sum under a product");
+    // Expected counts of every sum edge, by node index and child position.
+    let nodes = &start.nodes;
+    let mut counts: Vec<Vec<f64>> = nodes
+        .iter()
+        .map(|nd| match nd {
+            Node::Sum { weights, .. } => vec![0.0; weights.len()],
+            _ => vec![],
+        })
+        .collect();
+    for x in &samples {
+        let mut v = vec![0.0f64; nodes.len()];
+        for (i, nd) in nodes.iter().enumerate() {
+            v[i] = match nd {
+                Node::Leaf { var, class } => {
+                    f64::from(u8::from(u32::from(x[*var as usize]) == *class))
+                }
+                Node::Sum { children, weights } => children
+                    .iter()
+                    .zip(weights)
+                    .map(|(&k, w)| w * v[k as usize])
+                    .sum(),
+                Node::Product { children } => children.iter().map(|&k| v[k as usize]).product(),
+            };
+        }
+        let root = start.root as usize;
+        let mut d = vec![0.0f64; nodes.len()];
+        d[root] = 1.0;
+        for i in (0..nodes.len()).rev() {
+            match &nodes[i] {
+                Node::Sum { children, weights } => {
+                    for (j, (&k, w)) in children.iter().zip(weights).enumerate() {
+                        d[k as usize] += w * d[i];
+                        counts[i][j] += w * v[k as usize] * d[i] / v[root];
+                    }
+                }
+                Node::Product { children } => {
+                    for &k in children {
+                        let others: f64 = children
+                            .iter()
+                            .filter(|&&o| o != k)
+                            .map(|&o| v[o as usize])
+                            .product();
+                        d[k as usize] += d[i] * others;
+                    }
+                }
+                Node::Leaf { .. } => {}
+            }
+        }
+    }
+    let mut spn = start.clone();
+    let settings = TrainingSettings {
+        prune_threshold: 0.0,
+        ..fixed(s, 1, EmKind::Soft)
+    };
+    train(&mut spn, &samples, &settings, Progress::Hidden).unwrap();
+    for (i, nd) in spn.nodes.iter().enumerate() {
+        if let Node::Sum { weights, .. } = nd {
+            let z: f64 = counts[i].iter().map(|k| k + s).sum();
+            for (j, &w) in weights.iter().enumerate() {
+                let want = (counts[i][j] + s) / z;
+                assert!(
+                    (w - want).abs() <= 1e-9 * want,
+                    "sum {i} edge {j}: {w} vs {want}"
+                );
+            }
+        }
+    }
+}
