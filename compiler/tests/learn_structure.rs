@@ -6,7 +6,7 @@ mod common;
 use std::collections::BTreeSet;
 
 use common::learn::*;
-use graphspn_compiler::learn::structure::num_weights;
+use graphspn_compiler::learn::structure::{StructureError, num_weights};
 use graphspn_compiler::learn::{
     DenseParams, SplitChoice, dense_structure, edge_orbits, symmetric_dense_structure, uniform_spn,
 };
@@ -196,5 +196,22 @@ fn most_images_keeps_the_largest_orbit_for_every_seed() {
     for seed in 0..12 {
         let star = symmetric_dense_structure(5, 3, &p, &star_group(), seed).unwrap();
         assert_eq!(num_weights(&star), 12 * 75 + 10 * 45, "seed {seed}");
+    }
+}
+
+/// A symmetry group whose permutation is not one of the variables is refused with its
+/// position: a variable out of range, a repeated one, a wrong length.
+#[test]
+fn bad_permutations_are_refused() {
+    let p = DenseParams::default();
+    let identity = vec![0, 1, 2];
+    for bad in [vec![0, 1, 3], vec![0, 0, 2], vec![0, 1]] {
+        let err = symmetric_dense_structure(3, 3, &p, &[identity.clone(), bad.clone()], 0)
+            .expect_err("a bad permutation");
+        let text = err.to_string();
+        assert!(
+            matches!(err, StructureError::BadPermutation { index: 1, ref perm, num_vars: 3 } if *perm == bad),
+            "{bad:?}: {text}"
+        );
     }
 }

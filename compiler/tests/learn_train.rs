@@ -471,9 +471,10 @@ fn soft_em_survives_parents_more_than_709_nats_apart() {
 }
 
 /// A sample of probability zero is reported by its own tuple and first index, whatever
-/// the chunking of the E-step: here the second distinct tuple (in sorted order) is
-/// impossible (a zero weight on class 2 of variable 1); it is the first of the second
-/// chunk with a batch size of 1 and the second of the only chunk with a large one.
+/// the chunking of the E-step: here the third distinct tuple (in sorted order) is
+/// impossible (a zero weight on class 2 of variable 1); it is the first of the third
+/// chunk with a batch size of 1, the first of the second with 2 and the third of the
+/// only chunk with a large one.
 #[test]
 fn a_zero_probability_sample_is_reported_by_its_own_index() {
     let mut spn = graphspn_compiler::learn::uniform_spn(2, 3).unwrap();
@@ -481,8 +482,16 @@ fn a_zero_probability_sample_is_reported_by_its_own_index() {
         panic!("node 7 is variable 1's sum")
     };
     weights[2] = 0.0;
-    let samples = vec![vec![0u16, 0], vec![2, 1], vec![1, 2], vec![1, 2]];
-    for batch_size in [1, 1000] {
+    // Distinct tuples, sorted: [0, 0], [0, 1], [1, 2], [2, 1]: with batches of 2 the
+    // impossible one opens the second batch.
+    let samples = vec![
+        vec![0u16, 0],
+        vec![2, 1],
+        vec![0, 1],
+        vec![1, 2],
+        vec![1, 2],
+    ];
+    for batch_size in [1, 2, 1000] {
         let settings = TrainingSettings {
             batch_size,
             ..TrainingSettings::default()
@@ -490,7 +499,7 @@ fn a_zero_probability_sample_is_reported_by_its_own_index() {
         assert_eq!(
             train(&mut spn.clone(), &samples, &settings, Progress::Hidden),
             Err(TrainError::ZeroProbability {
-                index: 2,
+                index: 3,
                 sample: vec![1, 2]
             }),
             "batch size {batch_size}"
