@@ -648,20 +648,7 @@ fn soft_em_step_is_the_m_step_on_expected_counts() {
         })
         .collect();
     for x in &samples {
-        let mut v = vec![0.0f64; nodes.len()];
-        for (i, nd) in nodes.iter().enumerate() {
-            v[i] = match nd {
-                Node::Leaf { var, class } => {
-                    f64::from(u8::from(u32::from(x[*var as usize]) == *class))
-                }
-                Node::Sum { children, weights } => children
-                    .iter()
-                    .zip(weights)
-                    .map(|(&k, w)| w * v[k as usize])
-                    .sum(),
-                Node::Product { children } => children.iter().map(|&k| v[k as usize]).product(),
-            };
-        }
+        let v = node_values(&start, x);
         let root = start.root as usize;
         let mut d = vec![0.0f64; nodes.len()];
         d[root] = 1.0;

@@ -34,6 +34,12 @@ pub fn star_group() -> Vec<Vec<usize>> {
 /// Linear-space value of the SPN for a complete assignment, by plain recursion
 /// over the node list (an oracle independent of `learn::train`).
 pub fn value(spn: &Spn, x: &[ClassId]) -> f64 {
+    node_values(spn, x)[spn.root as usize]
+}
+
+/// Linear-space value of every node of the SPN for a complete assignment (see
+/// [`value`]).
+pub fn node_values(spn: &Spn, x: &[ClassId]) -> Vec<f64> {
     let mut v = vec![0.0f64; spn.nodes.len()];
     for (i, n) in spn.nodes.iter().enumerate() {
         v[i] = match n {
@@ -46,7 +52,7 @@ pub fn value(spn: &Spn, x: &[ClassId]) -> f64 {
             Node::Product { children } => children.iter().map(|&c| v[c as usize]).product(),
         };
     }
-    v[spn.root as usize]
+    v
 }
 
 /// All assignments of `n` variables with `c` classes each, as class ids (the first
