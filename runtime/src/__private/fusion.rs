@@ -89,6 +89,12 @@ impl<T: Real, const C: usize> Fused<T, C> {
         }
     }
 
+    /// Binary exponent by which the stored row lies below the product of the place's
+    /// observations (see [`ln_shift`]).
+    pub fn shift(&self) -> i32 {
+        self.shift
+    }
+
     /// The product of this evidence and `row` (exact up to one rounding per class), and
     /// the row inference reads for it (classes below `2^flush` of the best read as 0; see
     /// the module docs); `None` when no class keeps any mass. `row` must be checked
@@ -159,12 +165,38 @@ pub fn ln_shift<T: Real, const C: usize, const N: usize>(
     fused: &[Fused<T, C>; N],
     power: u32,
 ) -> T {
-    let sum: i64 = fused.iter().map(|f| i64::from(f.shift)).sum::<i64>() * i64::from(power);
+    shift_ln(fused.iter().map(|f| i64::from(f.shift)).sum::<i64>() * i64::from(power))
+}
+
+/// `ln 2 · sum`, exactly 0 for 0 (`sum`: a sum of [`Fused::shift`] times the evidence
+/// exponent; one rounding).
+pub fn shift_ln<T: Real>(sum: i64) -> T {
     if sum == 0 {
         T::ZERO
     } else {
         T::from_i64(sum) * T::LN_2
     }
+}
+
+/// The streaming state's log-scale: `Σ lns + ln 2 · shift`, where `lns[q]` is `ln` of
+/// the largest entry of place `q`'s stored row and `shift` the sum of the places'
+/// [`Fused::shift`] (which the state keeps, so this is [`ln_shift`] without its pass
+/// over every place's fused row). The float sum runs in eight partial sums combined
+/// pairwise (no chain of `N` dependent adds); its error is at most that of the
+/// sequential sum, `(N − 1)·ε·Σ|lns|`.
+pub fn ln_scale<T: Real, const N: usize>(lns: &[T; N], shift: i64) -> T {
+    let mut acc = [T::ZERO; 8];
+    let mut chunks = lns.chunks_exact(8);
+    for chunk in &mut chunks {
+        for (a, &x) in acc.iter_mut().zip(chunk) {
+            *a += x;
+        }
+    }
+    for (a, &x) in acc.iter_mut().zip(chunks.remainder()) {
+        *a += x;
+    }
+    let [a0, a1, a2, a3, a4, a5, a6, a7] = acc;
+    ((a0 + a4) + (a2 + a6)) + ((a1 + a5) + (a3 + a7)) + shift_ln(shift)
 }
 
 #[cfg(test)]
@@ -239,6 +271,36 @@ mod tests {
             f[1].observe(&[0.0, 1.0, 1.0], f32::TINY_EXP).is_none(),
             "no class left"
         );
+    }
+
+    #[test]
+    fn ln_scale_is_the_sum_of_lns_and_the_shifts() {
+        let mut x = 7u32;
+        let mut lns = [0.0f32; 231];
+        for v in lns.iter_mut() {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            *v = (x >> 8) as f32 / 16_777_216.0 * 80.0 - 60.0;
+        }
+        let exact: f64 = lns.iter().map(|&v| f64::from(v)).sum();
+        let bound =
+            230.0 * f64::from(f32::EPSILON) * lns.iter().map(|&v| f64::from(v).abs()).sum::<f64>();
+        for shift in [0i64, 1, -3_000, 1 << 40] {
+            let want = exact + shift as f64 * core::f64::consts::LN_2;
+            let got = f64::from(ln_scale(&lns, shift));
+            let tol = bound + want.abs() * f64::from(f32::EPSILON);
+            assert!((got - want).abs() <= tol, "shift {shift}: {got} vs {want}");
+        }
+        assert_eq!(ln_scale(&[0.0f32; 5], 0), 0.0);
+        assert_eq!(
+            ln_scale(&[1.5f32; 3], 0),
+            4.5,
+            "a remainder shorter than 8 is summed"
+        );
+        // The state's kept sum is the fused rows' shifts, as `ln_shift` reads them.
+        let mut f = [Fused::<f32, 3>::ONES; 2];
+        f[1] = f[1].observe(&[0.125, 0.0, 0.0], f32::TINY_EXP).unwrap().0;
+        let kept: i64 = f.iter().map(|g| i64::from(g.shift())).sum();
+        assert_eq!(ln_scale(&[0.0f32; 2], kept), ln_shift(&f, 1));
     }
 
     #[test]

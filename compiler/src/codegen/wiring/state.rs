@@ -34,6 +34,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
                     #new_table
                     lns: [0.0; NUM_PLACES],
                     fused: [#rt::Fused::ZERO; NUM_PLACES],
+                    shift: 0,
                     val: [0.0; NUM_COMPONENTS],
                     parts: [[#rt::Acc::ZERO; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
                     post: [[0.0; NUM_CLASSES]; NUM_ROWS],
@@ -87,8 +88,9 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
         /// observations exactly (a mantissa and a binary exponent per class): no class
         /// underflows, none is locked out however many observations arrive, and
         /// `log_likelihood` is that of the product of every observation. Costs: an update, about
-        /// [`MACS_OBSERVE_MARGINALS`] multiply-adds with `marginals`; `log_likelihood` and
-        /// `marginal` O(1) and O(D·C); `marginals` O(places·D·C); `mpe` and
+        /// [`MACS_OBSERVE_MARGINALS`] multiply-adds with `marginals`; `log_likelihood` one
+        /// addition per place (their rows' scales), `marginal` O(D·C); `marginals`
+        /// O(places·D·C); `mpe` and
         /// `labelled_log_likelihood` a full stateless pass on the state's evidence. The first
         /// call after [`State::new`] evaluates every component once. [`State::new`] is all
         /// zeros, so a `static` state is placed in `.bss` (no initial image in flash).
@@ -99,6 +101,8 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
             #table_field
             lns: [#t; NUM_PLACES],
             fused: [#rt::Fused<#t, NUM_CLASSES>; NUM_PLACES],
+            /// `Σ fused[q].shift()` over the places (what `ln_scale` reads).
+            shift: i64,
             val: [#t; NUM_COMPONENTS],
             parts: [[#rt::Acc<#t>; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
             post: [[#t; NUM_CLASSES]; NUM_ROWS],
@@ -231,6 +235,7 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
                 #fresh_table
                 self.lns = [0.0; NUM_PLACES];
                 self.fused = [#rt::Fused::ONES; NUM_PLACES];
+                self.shift = 0;
                 self.refresh();
             }
         }
@@ -242,6 +247,7 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
             if let (Some(r), Some(s), Some(f)) = (self.ev.get_mut(place), self.lns.get_mut(place), self.fused.get_mut(place)) {
                 *r = row;
                 *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
+                self.shift += i64::from(fused.shift()) - i64::from(f.shift());
                 *f = fused;
             }
             #store_table
@@ -315,6 +321,7 @@ fn update_methods(cx: &Context, table: bool) -> TokenStream {
                 *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
                 *f = #rt::Fused::of(row);
             }
+            self.shift = self.fused.iter().map(|f| i64::from(f.shift())).sum();
             self.refresh();
             Ok(())
         }
@@ -347,7 +354,7 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
         /// product of every observation where rows were fused by `observe`.
         pub fn log_likelihood(&mut self) -> Result<#t, #err> {
             self.fresh();
-            let scale: #t = self.lns.iter().copied().sum::<#t>() + #rt::ln_shift(&self.fused, 1);
+            let scale: #t = #rt::ln_scale(&self.lns, self.shift);
             if self.ok && scale + self.lhat > #t::NEG_INFINITY {
                 Ok(scale + self.lhat)
             } else {

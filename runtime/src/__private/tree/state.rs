@@ -7,8 +7,9 @@
 //! Per forest and place one row (the message to the parent; a root's belief) and one
 //! exponent; per place its evidence row (what `evidence()` returns) and its fused
 //! observations ([`Fused`]: per class a mantissa and a `u16` deficit, and two `i32`
-//! exponents). Bytes: `T·N·(K·size_of(V) + 4) + N·(C·(2·size_of(scalar) + 2) + 8) + 4·T +
-//! 4`.
+//! exponents), and the sum of those rows' shifts (so `log_likelihood` needs no pass over
+//! the places). Bytes: `T·N·(K·size_of(V) + 4) + N·(C·(2·size_of(scalar) + 2) + 8) + 4·T
+//! + 12`, plus alignment padding.
 //!
 //! # Exact fusion (`observe`)
 //!
@@ -26,7 +27,7 @@
 //! `marginal(place)` walks each forest from the root to the place (`O(T·height·C²)`),
 //! `marginals` is one downward pass per forest (`O(T·N·C²)`).
 
-use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, ln_shift, mix};
+use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, mix, shift_ln};
 use super::pass::{
     add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
 };
@@ -40,6 +41,8 @@ use crate::EvidenceError;
 pub struct TreeState<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize> {
     rows: [[V::Scalar; C]; N],
     fused: [Fused<V::Scalar, C>; N],
+    /// `Σ fused[q].shift()` over the places (`ln_shift` without a pass over them).
+    shift: i64,
     msg: [[[V; K]; N]; T],
     exp: [[i32; N]; T],
     total: [i32; T],
@@ -71,6 +74,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         TreeState {
             rows: [[<V::Scalar as Real>::ZERO; C]; N],
             fused: [Fused::ZERO; N],
+            shift: 0,
             msg: [[[V::ZERO; K]; N]; T],
             exp: [[0; N]; T],
             total: [0; T],
@@ -95,6 +99,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
             let one = V::Scalar::ONE;
             self.rows = [[one; C]; N];
             self.fused = [Fused::ONES; N];
+            self.shift = 0;
             self.refresh(m);
         }
     }
@@ -172,6 +177,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     ) {
         if let (Some(r), Some(f)) = (self.rows.get_mut(place), self.fused.get_mut(place)) {
             *r = row;
+            self.shift += i64::from(fused.shift()) - i64::from(f.shift());
             *f = fused;
         }
         self.update(m, place);
@@ -244,6 +250,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         for (r, f) in e.iter().zip(self.fused.iter_mut()) {
             *f = Fused::of(r);
         }
+        self.shift = self.fused.iter().map(|f| i64::from(f.shift())).sum();
         self.refresh(m);
         Ok(())
     }
@@ -285,10 +292,11 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
     }
 
     /// `ln` of the factor by which the stored rows (to the power `γ`) lie below the
-    /// fused observations' (see [`ln_shift`]); `0` when no row was fused by `observe`.
+    /// fused observations' (see [`super::super::ln_shift`]); `0` when no row was fused by
+    /// `observe`.
     pub fn ln_shift(&self, m: &TreeModel<V, C, K>) -> V::Scalar {
         if self.ready {
-            ln_shift(&self.fused, m.gamma)
+            shift_ln(self.shift * i64::from(m.gamma))
         } else {
             V::Scalar::ZERO
         }
