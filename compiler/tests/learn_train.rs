@@ -287,8 +287,21 @@ fn pruning_keeps_a_valid_normalised_spn() {
     )
     .unwrap();
     let before = num_weights(&spn);
+    // What `prune` reports: the sum edges under the threshold, a sum's heaviest kept.
+    let below: usize = spn
+        .nodes
+        .iter()
+        .map(|n| match n {
+            Node::Sum { weights, .. } => {
+                let max = weights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                weights.iter().filter(|&&w| w < 1e-3 && w != max).count()
+            }
+            _ => 0,
+        })
+        .sum();
     let removed = prune(&mut spn, 1e-3);
     assert!(removed > 0, "nothing pruned");
+    assert_eq!(removed, below, "the count of removed edges");
     assert!(num_weights(&spn) < before);
     let z: f64 = all_labellings(5, 3).iter().map(|x| value(&spn, x)).sum();
     assert!((z - 1.0).abs() < 1e-12, "mass {z}");

@@ -130,6 +130,40 @@ mod tests {
         );
     }
 
+    /// Weights whose powers neither under- nor overflow are tempered directly, `w^τ / Σ
+    /// w^τ` bit for bit (the rescaling by the largest weight is for under- and overflow
+    /// only); zero weights stay zero, and a sum of zeros stays zeros (not `0/0`).
+    #[test]
+    fn ordinary_weights_are_tempered_directly_and_zeros_stay_zero() {
+        let mut x = 11u64;
+        for _ in 0..50 {
+            let ws: Vec<f64> = (0..3)
+                .map(|_| {
+                    x = x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                    (x >> 11) as f64 / (1u64 << 53) as f64 + 0.01
+                })
+                .collect();
+            for tau in [0.3, 0.7, 2.5] {
+                let mut spn = one_sum(ws.clone());
+                temper_spn(&mut spn, tau).unwrap();
+                let p: Vec<f64> = ws.iter().map(|w| w.powf(tau)).collect();
+                let z: f64 = p.iter().sum();
+                let want: Vec<f64> = p.iter().map(|v| v / z).collect();
+                assert_eq!(weights(&spn), want, "{ws:?} at {tau}");
+            }
+        }
+        let mut spn = one_sum(vec![0.0, 0.5]);
+        temper_spn(&mut spn, 2.0).unwrap();
+        assert_eq!(weights(&spn), vec![0.0, 1.0]);
+        let mut spn = one_sum(vec![0.0, 0.0]);
+        temper_spn(&mut spn, 2.0).unwrap();
+        assert_eq!(
+            weights(&spn),
+            vec![0.0, 0.0],
+            "a sum of zeros is left as it is"
+        );
+    }
+
     /// A temperature beyond the domain is refused, not recorded and skipped.
     #[test]
     fn a_temperature_out_of_its_domain_is_refused() {
