@@ -5,7 +5,7 @@ mod common;
 
 use common::learn::*;
 use graphspn_compiler::learn::structure::num_weights;
-use graphspn_compiler::learn::train::{dedupe, log_likelihood, prune};
+use graphspn_compiler::learn::train::{dedupe, log_likelihood, log_likelihoods, prune};
 use graphspn_compiler::learn::{
     DenseParams, EmKind, Progress, Symmetry, TrainError, TrainingSettings,
     augment_with_automorphisms, dense_structure, edge_orbits, learn_template_spn,
@@ -327,6 +327,24 @@ fn pruning_keeps_a_valid_normalised_spn() {
     // log_likelihood agrees with the oracle.
     let x = &samples[0];
     assert!((log_likelihood(&spn, x).unwrap() - value(&spn, x).ln()).abs() < 1e-12);
+}
+
+/// The batch form gives one log-likelihood per sample, each that of the single-sample
+/// form and of the oracle, and refuses a bad sample by its index.
+#[test]
+fn log_likelihoods_are_those_of_each_sample() {
+    let spn = dense_structure(3, 3, &DenseParams::default(), 5).unwrap();
+    let samples = all_labellings(3, 3);
+    let lls = log_likelihoods(&spn, &samples).unwrap();
+    assert_eq!(lls.len(), samples.len());
+    for (x, &l) in samples.iter().zip(&lls) {
+        assert_eq!(l, log_likelihood(&spn, x).unwrap());
+        assert!((l - value(&spn, x).ln()).abs() < 1e-12);
+    }
+    assert!(matches!(
+        log_likelihoods(&spn, &[vec![0, 1, 2], vec![0, 1]]),
+        Err(TrainError::SampleLength { index: 1, .. })
+    ));
 }
 
 #[test]
