@@ -317,8 +317,11 @@ pub(super) fn report(
     let stack_marginals = with(cache.marginals, marginals);
     let stack_mpe = with(cache.values, mpe);
     let stack_state = with(cache.state, base + value).max(base + path.max(value + n * c));
-    let fields = n * c * s + n * fused_bytes(c, s) + t * n * row + 4 * t * n + 4 * t + 1;
-    let state_bytes = fields.div_ceil(align) * align;
+    // The rows, fused rows, messages and exponents, the roots' totals, the `i64` sum
+    // of the fused rows' shifts and the ready flag; the `i64` aligns the state to 8.
+    let fields = n * c * s + n * fused_bytes(c, s) + t * n * row + 4 * t * n + 4 * t + 8 + 1;
+    let state_align = align.max(8);
+    let state_bytes = fields.div_ceil(state_align) * state_align;
     let per_forest =
         |p: &ForestPlan| 4 * n + 2 * n + 2 * (n + 1) + 2 * p.kids.len() + 2 * p.roots.len() + 48;
     let table_bytes = plans.iter().map(per_forest).sum::<usize>() + (c + 2) * row;

@@ -550,8 +550,8 @@ fn component_int(components: usize) -> (Ident, usize) {
 }
 
 /// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, see
-/// `state.rs`), their scales and fused form, every component's value and posteriors,
-/// the values' partial products, the decomposition weights.
+/// `state.rs`), their scales, fused form and the sum of their shifts, every component's
+/// value and posteriors, the values' partial products, the decomposition weights.
 fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     let (n, c, scalar) = (cx.n, cx.c, cx.scalar);
     // `Acc`: a mantissa, an `i32` exponent and a log, aligned to the scalar.
@@ -561,6 +561,7 @@ fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     n * c * scalar * row_tables
         + n * scalar
         + n * fused_bytes(c, scalar)
+        + 8
         + layout.components * scalar
         + chunks * cx.d_count * acc
         + layout.rows * c * scalar
