@@ -678,3 +678,54 @@ fn factor_messages_log(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The log path gives the linear path's messages, normalised (`log Σ exp = 0`), for
+    /// factors of every arity.
+    #[test]
+    fn log_and_linear_factor_messages_agree_and_are_normalised() {
+        let mut x = 5u64;
+        let mut next = || {
+            x = x
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for cards in [vec![3], vec![2, 4], vec![2, 3, 4]] {
+            let n: usize = cards.iter().product();
+            let table: Vec<f64> = (0..n).map(|_| 0.05 + next()).collect();
+            let max = table.iter().copied().fold(0.0, f64::max);
+            let fd = FactorData {
+                vars: (0..cards.len()).collect(),
+                cards: cards.clone(),
+                lin: table.iter().map(|t| t / max).collect(),
+                log: table.iter().map(|t| t.ln()).collect(),
+                wide: false,
+                first_edge: 0,
+            };
+            let mut log_in: [Vec<f64>; MAX_ARITY] = Default::default();
+            let mut lin_in: [Vec<f64>; MAX_ARITY] = Default::default();
+            for (k, &c) in cards.iter().enumerate() {
+                let m: Vec<f64> = (0..c).map(|_| -3.0 * next()).collect();
+                let top = m.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                log_in[k] = m.iter().map(|v| v - top).collect();
+                lin_in[k] = log_in[k].iter().map(|v| v.exp()).collect();
+            }
+            let mut by_log: [Vec<f64>; MAX_ARITY] = Default::default();
+            let mut by_lin: [Vec<f64>; MAX_ARITY] = Default::default();
+            factor_messages_log(&fd, &log_in, &mut by_log);
+            factor_messages_lin(&fd, &lin_in, &mut by_lin);
+            for k in 0..cards.len() {
+                let sum: f64 = by_lin[k].iter().sum();
+                let lse = log_sum_exp(&by_log[k]);
+                assert!(lse.abs() < 1e-12, "{cards:?} target {k}: log Σ exp = {lse}");
+                for (a, b) in by_log[k].iter().zip(&by_lin[k]) {
+                    assert!((a - (b / sum).ln()).abs() < 1e-12, "{cards:?} target {k}");
+                }
+            }
+        }
+    }
+}
