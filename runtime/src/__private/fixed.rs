@@ -240,9 +240,158 @@ impl Ratio {
     }
 }
 
+/// The decomposition weights of a streaming state as unsigned Q1.31 (`v / 2^31`),
+/// rounded down: what [`state_marginals_fx`] multiplies by.
+#[inline]
+pub fn fx_weights<const D: usize>(w: &[f32; D]) -> [u32; D] {
+    let mut q = [0u32; D];
+    for (o, &v) in q.iter_mut().zip(w) {
+        *o = fx_from_f32(v).0 >> 1;
+    }
+    q
+}
+
+/// The streaming state's marginals without an FPU: adds every cached component's local
+/// posteriors, weighted by the sum of its decompositions' weights `wq` (Q1.31, see
+/// [`fx_weights`]), into `out` as Q1.31 integers held in the `f32` bits (integer
+/// multiply-adds: a `SoftF32` multiply and add cost about 85 instructions). Call with
+/// `out` zeroed and finish with [`fx_finish_rows`]. Each term rounds down by less than
+/// `2^-31` after its inputs lost less than `2^-32` each, so an entry is within `3·D·2^-31`
+/// (absolute, `D` decompositions) of the float sum; sums stay below 2 (weights and
+/// posteriors are at most `1` up to float rounding), so nothing overflows.
+#[inline(never)]
+pub fn state_marginals_fx<
+    W: super::Lanes<Scalar = f32>,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    t: &super::Tpl<W, L, NV, C>,
+    post: &[[f32; C]],
+    wq: &[u32; D],
+    out: &mut [[f32; C]; N],
+) {
+    let places = t.places.iter().flat_map(|g| g.iter());
+    for ((&mask, pl), rows) in t.decs.iter().zip(places).zip(post.chunks_exact(NV)) {
+        let mut wu = 0u32;
+        for (d, &v) in wq.iter().enumerate() {
+            if mask >> d & 1 == 1 {
+                wu = wu.wrapping_add(v);
+            }
+        }
+        let wu = u64::from(wu);
+        for (&q, r) in pl.iter().zip(rows) {
+            if let Some(o) = out.get_mut(usize::from(q)) {
+                for (oc, &pc) in o.iter_mut().zip(r) {
+                    let term = (u64::from(fx_from_f32(pc).0) * wu >> 32) as u32;
+                    *oc = f32::from_bits(oc.to_bits().wrapping_add(term));
+                }
+            }
+        }
+    }
+}
+
+/// Turns the Q1.31 sums [`state_marginals_fx`] left in `out`'s bits into `f32` values
+/// (rounded down; integer operations only).
+#[inline(never)]
+pub fn fx_finish_rows<const C: usize, const N: usize>(out: &mut [[f32; C]; N]) {
+    for o in out.iter_mut().flatten() {
+        *o = q31_to_f32(o.to_bits());
+    }
+}
+
+/// `v / 2^31` as `f32`, truncated (no soft-float call).
+#[inline(always)]
+fn q31_to_f32(v: u32) -> f32 {
+    if v == 0 {
+        return 0.0;
+    }
+    let lz = v.leading_zeros();
+    // `v << lz` lies in [2^31, 2^32): the value is `(v << lz) / 2^31 · 2^-lz`.
+    let m = (v << lz) >> 8 & 0x7f_ffff;
+    f32::from_bits((127 - lz) << 23 | m)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn q31_values_convert_to_f32_exactly_where_they_fit() {
+        assert_eq!(q31_to_f32(0), 0.0);
+        assert_eq!(q31_to_f32(1 << 31), 1.0);
+        assert_eq!(q31_to_f32(1 << 30), 0.5);
+        assert_eq!(q31_to_f32(3 << 30), 1.5);
+        assert_eq!(q31_to_f32(u32::MAX), f32::from_bits(0x3fff_ffff));
+        assert_eq!(q31_to_f32(1), 2f32.powi(-31));
+        let mut x = 3u32;
+        for _ in 0..100_000 {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let exact = f64::from(x) / f64::from(1u32 << 31);
+            let got = f64::from(q31_to_f32(x));
+            assert!(
+                got <= exact && exact - got < exact * f64::from(f32::EPSILON),
+                "{x}"
+            );
+        }
+    }
+
+    /// The fixed-point mix of a state against the float one, within its bound.
+    #[test]
+    fn fixed_point_state_marginals_are_within_their_bound() {
+        use super::super::Tpl;
+        fn unused_fwd(_: &[[f32; 3]; 2]) -> f32 {
+            0.0
+        }
+        fn unused_post(_: &[[f32; 3]; 2], _: &mut [[f32; 3]; 2]) -> f32 {
+            0.0
+        }
+        fn unused_mpe(_: &[[f32; 3]; 2], _: &mut [[u16; 2]; 1]) -> f32 {
+            0.0
+        }
+        // Three 2-place components over 3 places and 3 decompositions: (0, 1) in
+        // decompositions 0 and 1, (1, 2) in 2, (2, 0) in 0.
+        static PLACES: [[[u16; 2]; 1]; 3] = [[[0, 1]], [[1, 2]], [[2, 0]]];
+        static DECS: [u64; 3] = [0b011, 0b100, 0b001];
+        let t: Tpl<f32, 1, 2, 3> = Tpl {
+            places: &PLACES,
+            decs: &DECS,
+            log: false,
+            fwd: unused_fwd,
+            post: unused_post,
+            max: unused_fwd,
+            mpe: unused_mpe,
+        };
+        let mut x = 9u32;
+        for _ in 0..1_000 {
+            let mut post = [[0.0f32; 3]; 6];
+            for row in post.iter_mut() {
+                let mut s = 0.0;
+                for v in row.iter_mut() {
+                    x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    *v = (x >> 8) as f32 / 16_777_216.0;
+                    s += *v;
+                }
+                for v in row.iter_mut() {
+                    *v /= s;
+                }
+            }
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let a = (x >> 8) as f32 / 16_777_216.0;
+            let w = [a * 0.5, 0.5 - a * 0.5, 0.5];
+            let mut want = [[0.0f32; 3]; 3];
+            super::super::state_marginals(&t, &post, &w, &mut want);
+            let mut got = [[0.0f32; 3]; 3];
+            state_marginals_fx(&t, &post, &fx_weights(&w), &mut got);
+            fx_finish_rows(&mut got);
+            for (g, w) in got.iter().flatten().zip(want.iter().flatten()) {
+                let bound = 3.0 * 3.0 * 2f32.powi(-31) + 2.0 * f32::EPSILON * w;
+                assert!((g - w).abs() <= bound, "{g} vs {w}");
+            }
+        }
+    }
 
     #[test]
     fn conversion_rounds_down_and_saturates() {

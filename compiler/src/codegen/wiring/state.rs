@@ -335,17 +335,26 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
     // Each place mixes its D posterior rows: rows of contiguous multiply-adds (SIMD
     // hosts: 0.6 µs less per step at 230 places; Cortex-M4F: 4% fewer instructions).
     // Without an FPU (the fixed-point kernel's targets) each cached component's rows
-    // are added once instead, weighted by all its decompositions: a component shared
-    // by several decompositions costs one row, 6-7% fewer soft-float operations.
+    // are added once instead, weighted by all its decompositions (a component shared
+    // by several decompositions costs one row), in Q1.31 integer multiply-adds: the
+    // soft-float mix was three quarters of a Cortex-M3 step.
     let mix = if !cx.fixed {
         quote!(#rt::mix_places(&self.post, &PLACE_SLOTS, &self.w, out);)
     } else {
-        let calls = cached_marginals(tpls, &quote!(self.post), &quote!(self.w));
+        let calls: TokenStream = tpls
+            .iter()
+            .map(|tp| {
+                let (stat, first_row) = (&tp.stat, int(tp.first_row));
+                quote!(if let Some(p) = self.post.get(#first_row..) { #rt::state_marginals_fx(&#stat, p, &wq, out); })
+            })
+            .collect();
         quote! {
+            let wq = #rt::fx_weights(&self.w);
             for row in out.iter_mut() {
                 *row = [0.0; NUM_CLASSES];
             }
             #calls
+            #rt::fx_finish_rows(out);
         }
     };
     let err = quote!(::graphspn_runtime::EvidenceError);
