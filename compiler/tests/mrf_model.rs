@@ -271,4 +271,11 @@ fn evidence_and_class_checks_refuse_only_bad_input() {
     four.classes = ClassSet::new(vec!["A".into(), "B".into(), "C".into(), "D".into()]).unwrap();
     let err = m2.factor_graph(&four, None).unwrap_err();
     assert!(err.to_string().contains("4 classes, the model 3"), "{err}");
+    // A place labelled with class index 3 of 3 classes is refused by name, not counted.
+    let out_of_range = map(&[0, 1, 1, 3], &[(0, 1), (1, 2), (2, 3)]);
+    let err = Mrf2::train(&[out_of_range], &CooccurrenceParams::default()).unwrap_err();
+    assert!(
+        err.to_string().contains("place 103: class 3 out of range"),
+        "{err}"
+    );
 }
