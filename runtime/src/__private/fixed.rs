@@ -285,7 +285,7 @@ pub fn state_marginals_fx<
         for (&q, r) in pl.iter().zip(rows) {
             if let Some(o) = out.get_mut(usize::from(q)) {
                 for (oc, &pc) in o.iter_mut().zip(r) {
-                    let term = (u64::from(fx_from_f32(pc).0) * wu >> 32) as u32;
+                    let term = ((u64::from(fx_from_f32(pc).0) * wu) >> 32) as u32;
                     *oc = f32::from_bits(oc.to_bits().wrapping_add(term));
                 }
             }
