@@ -329,6 +329,42 @@ fn pruning_keeps_a_valid_normalised_spn() {
     assert!((log_likelihood(&spn, x).unwrap() - value(&spn, x).ln()).abs() < 1e-12);
 }
 
+/// On a selective SPN (one sum over the indicators of one variable: a sample reaches
+/// exactly one child) the MPE value of a sample is its likelihood, so the report's
+/// per-sample MPE log-likelihood of every epoch equals its log-likelihood.
+#[test]
+fn the_reported_mpe_log_likelihood_is_per_sample() {
+    let mut spn = graphspn_compiler::spn::Spn {
+        classes: vec![2],
+        nodes: vec![
+            Node::Leaf { var: 0, class: 0 },
+            Node::Leaf { var: 0, class: 1 },
+            Node::Sum {
+                children: vec![0, 1],
+                weights: vec![0.5, 0.5],
+            },
+        ],
+        root: 2,
+    };
+    let samples = vec![vec![0], vec![1], vec![1], vec![1]];
+    let report = train(
+        &mut spn,
+        &samples,
+        &fixed(0.01, 3, EmKind::Hard),
+        Progress::Hidden,
+    )
+    .unwrap();
+    assert_eq!(report.mpe_log_likelihood_per_epoch.len(), 3);
+    for (mpe, ll) in report
+        .mpe_log_likelihood_per_epoch
+        .iter()
+        .zip(&report.log_likelihood_per_epoch)
+    {
+        assert!((mpe - ll).abs() < 1e-12, "{mpe} vs {ll}");
+        assert!(*ll > 2f64.ln() * -2.0, "per sample: {ll}");
+    }
+}
+
 /// The batch form gives one log-likelihood per sample, each that of the single-sample
 /// form and of the oracle, and refuses a bad sample by its index.
 #[test]
