@@ -334,18 +334,7 @@ fn pruning_keeps_a_valid_normalised_spn() {
 /// per-sample MPE log-likelihood of every epoch equals its log-likelihood.
 #[test]
 fn the_reported_mpe_log_likelihood_is_per_sample() {
-    let mut spn = graphspn_compiler::spn::Spn {
-        classes: vec![2],
-        nodes: vec![
-            Node::Leaf { var: 0, class: 0 },
-            Node::Leaf { var: 0, class: 1 },
-            Node::Sum {
-                children: vec![0, 1],
-                weights: vec![0.5, 0.5],
-            },
-        ],
-        root: 2,
-    };
+    let mut spn = indicator_sum(vec![0.5, 0.5]);
     let samples = vec![vec![0], vec![1], vec![1], vec![1]];
     let report = train(
         &mut spn,

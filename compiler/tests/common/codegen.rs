@@ -322,18 +322,7 @@ pub fn tiny() -> (Model, TopoMap, Vec<Decomposition>) {
         nodes,
         root: 8,
     };
-    let single = Spn {
-        classes: vec![2],
-        nodes: vec![
-            Node::Leaf { var: 0, class: 0 },
-            Node::Leaf { var: 0, class: 1 },
-            Node::Sum {
-                children: vec![0, 1],
-                weights: vec![0.5, 0.5],
-            },
-        ],
-        root: 2,
-    };
+    let single = super::learn::indicator_sum(vec![0.5, 0.5]);
     let m = model(
         2,
         vec![Template::pair(), Template::singleton()],

@@ -9,6 +9,23 @@ use rand_chacha::rand_core::SeedableRng;
 
 pub use super::permutations;
 
+/// One variable of two classes, one sum over its two indicator leaves with `weights`:
+/// the smallest SPN, and a selective one (a complete sample reaches one child).
+pub fn indicator_sum(weights: Vec<f64>) -> Spn {
+    Spn {
+        classes: vec![2],
+        nodes: vec![
+            Node::Leaf { var: 0, class: 0 },
+            Node::Leaf { var: 0, class: 1 },
+            Node::Sum {
+                children: vec![0, 1],
+                weights,
+            },
+        ],
+        root: 2,
+    }
+}
+
 /// Automorphisms of Pair (P–A): identity and the swap.
 pub fn pair_group() -> Vec<Vec<usize>> {
     vec![vec![0, 1], vec![1, 0]]

@@ -378,10 +378,21 @@ fn accumulate<T: Real, const D: usize>(acc: &mut [Acc<T>; D], mask: u64, v: T, l
 /// `Σ_{d ∋ component} w_d`.
 #[inline(always)]
 fn weight<T: Real, const D: usize>(w: &[T; D], mask: u64) -> T {
-    let mut s = T::ZERO;
+    masked_sum(w, mask, T::ZERO)
+}
+
+/// `zero + Σ w_d` over the decompositions `d` whose bit is set in `mask` (a component's
+/// weight; floats, or the fixed-point mix's Q1.31 integers), in order of `d`.
+#[inline(always)]
+pub(crate) fn masked_sum<X: Copy + core::ops::Add<Output = X>, const D: usize>(
+    w: &[X; D],
+    mask: u64,
+    zero: X,
+) -> X {
+    let mut s = zero;
     for (d, &wd) in w.iter().enumerate() {
         if mask >> d & 1 == 1 {
-            s += wd;
+            s = s + wd;
         }
     }
     s

@@ -275,13 +275,8 @@ pub fn state_marginals_fx<
 ) {
     let places = t.places.iter().flat_map(|g| g.iter());
     for ((&mask, pl), rows) in t.decs.iter().zip(places).zip(post.chunks_exact(NV)) {
-        let mut wu = 0u32;
-        for (d, &v) in wq.iter().enumerate() {
-            if mask >> d & 1 == 1 {
-                wu = wu.wrapping_add(v);
-            }
-        }
-        let wu = u64::from(wu);
+        // At most `2^31·(1 + ε)`: the weights sum to 1 up to rounding.
+        let wu = u64::from(super::engine::masked_sum(wq, mask, 0u32));
         for (&q, r) in pl.iter().zip(rows) {
             if let Some(o) = out.get_mut(usize::from(q)) {
                 for (oc, &pc) in o.iter_mut().zip(r) {

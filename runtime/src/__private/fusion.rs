@@ -165,7 +165,13 @@ pub fn ln_shift<T: Real, const C: usize, const N: usize>(
     fused: &[Fused<T, C>; N],
     power: u32,
 ) -> T {
-    shift_ln(fused.iter().map(|f| i64::from(f.shift)).sum::<i64>() * i64::from(power))
+    shift_ln(shift_sum(fused) * i64::from(power))
+}
+
+/// `Σ shift` over the places' fused rows (what a streaming state keeps, updated as
+/// rows are stored).
+pub fn shift_sum<T: Real, const C: usize, const N: usize>(fused: &[Fused<T, C>; N]) -> i64 {
+    fused.iter().map(|f| i64::from(f.shift)).sum()
 }
 
 /// `ln 2 · sum`, exactly 0 for 0 (`sum`: a sum of [`Fused::shift`] times the evidence
@@ -300,6 +306,7 @@ mod tests {
         let mut f = [Fused::<f32, 3>::ONES; 2];
         f[1] = f[1].observe(&[0.125, 0.0, 0.0], f32::TINY_EXP).unwrap().0;
         let kept: i64 = f.iter().map(|g| i64::from(g.shift())).sum();
+        assert_eq!(shift_sum(&f), kept);
         assert_eq!(ln_scale(&[0.0f32; 2], kept), ln_shift(&f, 1));
     }
 

@@ -280,7 +280,7 @@ mod tree;
 pub use blocks::*;
 pub use engine::*;
 pub use fixed::*;
-pub use fusion::{Fused, ln_scale, ln_shift, shift_ln};
+pub use fusion::{Fused, ln_scale, ln_shift, shift_ln, shift_sum};
 pub use lanes::*;
 pub use soft_float::SoftF32;
 pub use tree::*;

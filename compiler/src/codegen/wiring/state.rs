@@ -321,7 +321,7 @@ fn update_methods(cx: &Context, table: bool) -> TokenStream {
                 *s = #rt::Real::ln(row.iter().copied().fold(0.0, #t::max));
                 *f = #rt::Fused::of(row);
             }
-            self.shift = self.fused.iter().map(|f| i64::from(f.shift())).sum();
+            self.shift = #rt::shift_sum(&self.fused);
             self.refresh();
             Ok(())
         }
@@ -392,7 +392,7 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
         /// The MPE labelling of the current evidence and its log value (a full max-product
         /// pass; the value is of the product of every observation, like `log_likelihood`).
         pub fn mpe(&mut self, labels: &mut Labels) -> Result<#t, #err> {
-            Ok(mpe_unchecked(self.evidence(), labels)? + #rt::ln_shift(&self.fused, 1))
+            Ok(mpe_unchecked(self.evidence(), labels)? + #rt::shift_ln::<#t>(self.shift))
         }
 
         /// The log-likelihood of the current evidence with labelled places restricted to
@@ -400,7 +400,7 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
         /// `log_likelihood`).
         pub fn labelled_log_likelihood(&mut self, labels: &Labels) -> Result<#t, #err> {
             #rt::check_labels(labels, NUM_CLASSES)?;
-            Ok(labelled_log_likelihood_unchecked(labels, self.evidence())? + #rt::ln_shift(&self.fused, 1))
+            Ok(labelled_log_likelihood_unchecked(labels, self.evidence())? + #rt::shift_ln::<#t>(self.shift))
         }
     }
 }

@@ -27,7 +27,7 @@
 //! `marginal(place)` walks each forest from the root to the place (`O(T·height·C²)`),
 //! `marginals` is one downward pass per forest (`O(T·N·C²)`).
 
-use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, mix, shift_ln};
+use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, mix, shift_ln, shift_sum};
 use super::pass::{
     add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
 };
@@ -250,7 +250,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         for (r, f) in e.iter().zip(self.fused.iter_mut()) {
             *f = Fused::of(r);
         }
-        self.shift = self.fused.iter().map(|f| i64::from(f.shift())).sum();
+        self.shift = shift_sum(&self.fused);
         self.refresh(m);
         Ok(())
     }
