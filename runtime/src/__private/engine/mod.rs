@@ -1,0 +1,403 @@
+//! The generic driver of generated code: evaluates every component of a map through
+//! its template's generated functions, mixes the decompositions, and keeps the cache
+//! of the streaming state.
+//!
+//! A generated module holds, per template, a [`Tpl`]: the template's component table
+//! (places of each component, in groups of `L` components evaluated at once, one per
+//! lane of `W`; `L = 1` and `W` = the scalar on targets without float SIMD) and its
+//! generated straight-line functions (value, value + local posteriors, max-product
+//! value, scalar MPE with backtracking). The loops here run over those constant
+//! tables: their trip counts never depend on the evidence.
+//!
+//! Values of decompositions are products of many component values; they are kept as
+//! [`Acc`]: a mantissa in `[1, 2)` and an integer power of two (exact), so a product
+//! of thousands of factors neither underflows nor loses more than one rounding per
+//! factor, and differences between decompositions are taken on the exponents first.
+
+use super::{Lanes, Real};
+
+mod evidence;
+mod streaming;
+
+pub use evidence::*;
+pub use streaming::*;
+
+/// A template's value + local posteriors function (see [`Tpl::post`]).
+pub type PostFn<W, const NV: usize, const C: usize> = fn(&[[W; C]; NV], &mut [[W; C]; NV]) -> W;
+/// A template's MPE function (see [`Tpl::mpe`]).
+pub type MpeFn<W, const L: usize, const NV: usize, const C: usize> =
+    fn(&[[W; C]; NV], &mut [[u16; NV]; L]) -> W;
+
+/// `a > b`; `false` when either is NaN.
+#[inline(always)]
+pub(crate) fn above<T: PartialOrd>(a: T, b: T) -> bool {
+    a > b
+}
+
+/// One template of a compiled map: its component table and generated functions.
+///
+/// `W` is the lane vector (`L` components per call), `NV` the template's places, `C`
+/// the number of classes.
+pub struct Tpl<W: Lanes, const L: usize, const NV: usize, const C: usize> {
+    /// Places of every group of `L` components (padded with the group's first member).
+    pub places: &'static [[[u16; NV]; L]],
+    /// Per component (group `g`, lane `l` is component `g·L + l`): bit `d` set when
+    /// decomposition `d` contains it. Components past the end are padding.
+    pub decs: &'static [u64],
+    /// `true` when the functions return natural-log values (log-space template).
+    pub log: bool,
+    /// Value of each lane's component on scaled evidence.
+    pub fwd: fn(&[[W; C]; NV]) -> W,
+    /// Value and local posteriors `x_i[c]·∂T/∂x_i[c] / T` of each lane's component.
+    pub post: PostFn<W, NV, C>,
+    /// Max-product value of each lane's component.
+    pub max: fn(&[[W; C]; NV]) -> W,
+    /// Max-product value of each lane's component and its arg-max labelling (lane
+    /// `l`'s into `lab[l]`, one class per variable).
+    pub mpe: MpeFn<W, L, NV, C>,
+}
+
+/// A non-negative product kept as `m · 2^e · e^lg` (`m` in `[1, 2)` or `0`), see the
+/// module docs.
+#[derive(Clone, Copy, Debug)]
+pub struct Acc<T> {
+    m: T,
+    e: i32,
+    lg: T,
+}
+
+impl<T: Real> Acc<T> {
+    /// The empty product, `1`.
+    pub const ONE: Acc<T> = Acc {
+        m: T::ONE,
+        e: 0,
+        lg: T::ZERO,
+    };
+
+    /// All-zero bits (the product 0): what a `const` all-zero `State` holds before its
+    /// first use computes the products (so it lives in `.bss`, with no image in flash).
+    pub const ZERO: Acc<T> = Acc {
+        m: T::ZERO,
+        e: 0,
+        lg: T::ZERO,
+    };
+
+    /// Multiplies by a linear value `v ≥ 0` (one rounding).
+    #[inline(always)]
+    pub fn mul(&mut self, v: T) {
+        let (m, e) = (self.m * v).split();
+        self.m = m;
+        self.e += e;
+    }
+
+    /// Multiplies by `2^k` (exact).
+    #[inline(always)]
+    pub fn mul_pow2(&mut self, k: i32) {
+        self.e = self.e.saturating_add(k);
+    }
+
+    /// Multiplies by `e^l` for a log value `l`.
+    #[inline(always)]
+    pub fn mul_log(&mut self, l: T) {
+        self.lg += l;
+    }
+
+    /// `ln` of the product (`-inf` for `0`).
+    #[inline]
+    pub fn ln(&self) -> T {
+        self.m.ln() + T::from_i32(self.e) * T::LN_2 + self.lg
+    }
+
+    /// `ln(self / o)`, exact in the exponents (`-inf` when `self` is `0`).
+    #[inline]
+    pub fn ln_ratio(&self, o: &Acc<T>) -> T {
+        (self.m / o.m).ln() + T::from_i32(self.e - o.e) * T::LN_2 + (self.lg - o.lg)
+    }
+
+    /// `true` when the product is `0` (or its log is `-inf`).
+    #[inline]
+    pub fn is_zero(&self) -> bool {
+        !above(self.m, T::ZERO) || !above(self.lg, T::NEG_INFINITY)
+    }
+}
+
+/// The decompositions' mixture: `ln Ŝ = ln((1/D) Σ_d Π_k T_k)` and the posterior weight
+/// `w_d` of each decomposition, or `None` when every decomposition is `0`.
+#[inline]
+pub fn mix<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<(T, [T; D])> {
+    let mut best: Option<&Acc<T>> = None;
+    for a in acc {
+        if a.is_zero() {
+            continue;
+        }
+        match best {
+            Some(b) if a.ln_ratio(b) <= T::ZERO => {}
+            _ => best = Some(a),
+        }
+    }
+    let best = best?;
+    let mut w = [T::ZERO; D];
+    let mut s = T::ZERO;
+    for (o, a) in w.iter_mut().zip(acc) {
+        if !a.is_zero() {
+            *o = a.ln_ratio(best).exp();
+            s += *o;
+        }
+    }
+    let inv = T::ONE / s;
+    for o in w.iter_mut() {
+        *o *= inv;
+    }
+    Some((best.ln() + s.ln() - T::from_i32(D as i32).ln(), w))
+}
+
+/// Index of the largest decomposition value (lowest index on ties), or `None` when
+/// every decomposition is `0`.
+#[inline]
+pub fn best<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<usize> {
+    let mut best: Option<usize> = None;
+    for (d, a) in acc.iter().enumerate() {
+        if a.is_zero() {
+            continue;
+        }
+        match best.and_then(|b| acc.get(b)) {
+            Some(b) if a.ln_ratio(b) <= T::ZERO => {}
+            _ => best = Some(d),
+        }
+    }
+    best
+}
+
+/// Multiplies every component's value (`max`: its max-product value) into the
+/// accumulator of each decomposition containing it.
+#[inline(never)]
+pub fn value_pass<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    labels: &[u16; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    max: bool,
+    acc: &mut [Acc<W::Scalar>; D],
+) {
+    for (g, p) in t.places.iter().enumerate() {
+        let x = gather::<W, L, NV, C, N>(e, Some(labels), table, p);
+        let v = if max { (t.max)(&x) } else { (t.fwd)(&x) };
+        let masks = t.decs.get(g * L..).unwrap_or(&[]);
+        for (&mask, &vl) in masks.iter().zip(&v.to_lanes::<L>()) {
+            accumulate(acc, mask, vl, t.log);
+        }
+    }
+}
+
+/// Multiplies `v` (a log value when `log`) into every decomposition of `mask`.
+#[inline(always)]
+fn accumulate<T: Real, const D: usize>(acc: &mut [Acc<T>; D], mask: u64, v: T, log: bool) {
+    for (d, a) in acc.iter_mut().enumerate() {
+        if mask >> d & 1 == 1 {
+            if log {
+                a.mul_log(v);
+            } else {
+                a.mul(v);
+            }
+        }
+    }
+}
+
+/// `Σ_{d ∋ component} w_d`.
+#[inline(always)]
+fn weight<T: Real, const D: usize>(w: &[T; D], mask: u64) -> T {
+    masked_sum(w, mask, T::ZERO)
+}
+
+/// `zero + Σ w_d` over the decompositions `d` whose bit is set in `mask` (a component's
+/// weight; floats, or the fixed-point mix's Q1.31 integers), in order of `d`.
+#[inline(always)]
+pub(crate) fn masked_sum<X: Copy + core::ops::Add<Output = X>, const D: usize>(
+    w: &[X; D],
+    mask: u64,
+    zero: X,
+) -> X {
+    let mut s = zero;
+    for (d, &wd) in w.iter().enumerate() {
+        if mask >> d & 1 == 1 {
+            s = s + wd;
+        }
+    }
+    s
+}
+
+/// Value and local posteriors of group `p` of a template on evidence `e` (no labels;
+/// `table`: see [`gather`]): `(values per lane, posterior vectors [variable][class])`.
+#[inline(always)]
+fn post_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    p: &[[u16; NV]; L],
+) -> ([W::Scalar; L], [[W; C]; NV]) {
+    let x = gather::<W, L, NV, C, N>(e, None, table, p);
+    let mut post = [[W::ZERO; C]; NV];
+    let v = (t.post)(&x, &mut post);
+    (v.to_lanes::<L>(), post)
+}
+
+/// One variable's posterior vectors as `[class][lane]` scalars.
+#[inline(always)]
+fn class_lanes<W: Lanes, const L: usize, const C: usize>(pv: &[W; C]) -> [[W::Scalar; L]; C] {
+    let mut out = [[W::Scalar::ZERO; L]; C];
+    for (o, &v) in out.iter_mut().zip(pv) {
+        *o = v.to_lanes::<L>();
+    }
+    out
+}
+
+/// Posterior pass of the stateless marginals: evaluates every component with its
+/// local posteriors and adds them, weighted by its decompositions' posterior weights
+/// `w`, into `out`.
+#[inline(never)]
+pub fn posterior_pass<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    w: &[W::Scalar; D],
+    out: &mut [[W::Scalar; C]; N],
+) {
+    for (g, p) in t.places.iter().enumerate() {
+        let (_, post) = post_group(t, e, table, p);
+        let masks = t.decs.get(g * L..).unwrap_or(&[]);
+        let mut wl = [W::Scalar::ZERO; L];
+        for (o, &mask) in wl.iter_mut().zip(masks) {
+            *o = weight(w, mask);
+        }
+        for (i, pv) in post.iter().enumerate() {
+            let pv = class_lanes::<W, L, C>(pv);
+            for (l, (pl, &wl)) in p.iter().zip(&wl).enumerate().take(masks.len()) {
+                let Some(o) = pl.get(i).and_then(|&q| out.get_mut(usize::from(q))) else {
+                    continue;
+                };
+                for (oc, pc) in o.iter_mut().zip(&pv) {
+                    *oc += wl * pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
+                }
+            }
+        }
+    }
+}
+
+/// Writes the MPE labels of the components of decomposition `d`.
+#[inline(never)]
+pub fn mpe_labels<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    d: usize,
+    labels: &mut [u16; N],
+) {
+    // Scalar code reads no table (see `gather`).
+    let table = if W::WIDTH > 1 { table } else { None };
+    // The decomposition's components, `L` at a time: lanes past `n` keep an earlier
+    // component's places (or place 0) and are not written back.
+    let mut batch = [[0u16; NV]; L];
+    let mut n = 0;
+    for (g, p) in t.places.iter().enumerate() {
+        for (l, pl) in p.iter().enumerate() {
+            match t.decs.get(g * L + l) {
+                Some(&mask) if mask >> d & 1 == 1 => {}
+                _ => continue,
+            }
+            if let Some(b) = batch.get_mut(n) {
+                *b = *pl;
+            }
+            n += 1;
+            if n == L {
+                mpe_batch(t, e, table, &batch, n, labels);
+                n = 0;
+            }
+        }
+    }
+    if n > 0 {
+        mpe_batch(t, e, table, &batch, n, labels);
+    }
+}
+
+/// MPE labelling of the components of `batch` (one per lane): writes the classes of
+/// the first `n` lanes' places into `labels`.
+#[inline(always)]
+fn mpe_batch<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    batch: &[[u16; NV]; L],
+    n: usize,
+    labels: &mut [u16; N],
+) {
+    let x = gather::<W, L, NV, C, N>(e, None, table, batch);
+    let mut lab = [[0u16; NV]; L];
+    (t.mpe)(&x, &mut lab);
+    for (lab, pl) in lab.iter().zip(batch).take(n) {
+        for (&c, &q) in lab.iter().zip(pl) {
+            if let Some(o) = labels.get_mut(usize::from(q)) {
+                *o = c;
+            }
+        }
+    }
+}
+
+/// `a[i] += v` for every `i`.
+#[inline(always)]
+pub fn add_all<W: Copy + core::ops::AddAssign, const K: usize>(a: &mut [W; K], v: W) {
+    for o in a.iter_mut() {
+        *o += v;
+    }
+}
+
+/// Local posteriors `post[i][c] = x[i][c]·g[i][c] / v` (lane-wise).
+#[inline(always)]
+pub fn post_rows<W: Lanes, const NV: usize, const C: usize>(
+    x: &[[W; C]; NV],
+    g: &[[W; C]; NV],
+    v: W,
+    post: &mut [[W; C]; NV],
+) {
+    let inv = W::splat(<W::Scalar as Real>::ONE) / v;
+    for ((pv, xv), gv) in post.iter_mut().zip(x).zip(g) {
+        for ((o, &a), &b) in pv.iter_mut().zip(xv).zip(gv) {
+            *o = a * b * inv;
+        }
+    }
+}
+
+/// The largest entry and its index (lowest index on ties; `(0, 0)` when all are `≤ 0`).
+#[inline(always)]
+pub fn amax<T: Real, const K: usize>(v: &[T; K]) -> (T, u16) {
+    let (mut best, mut arg) = (T::ZERO, 0u16);
+    for (i, &x) in v.iter().enumerate() {
+        if x > best {
+            best = x;
+            arg = i as u16;
+        }
+    }
+    (best, arg)
+}
+
+/// Where `c > *r` (strictly): `*r = c` and `*a = code` (arg-max of a block sum).
+#[inline(always)]
+pub fn sel<T: Real>(r: &mut T, a: &mut [u16; 4], c: T, code: [u16; 4]) {
+    if c > *r {
+        *r = c;
+        *a = code;
+    }
+}
