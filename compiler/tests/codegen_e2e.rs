@@ -235,6 +235,10 @@ pub fn build_and_run(modules: &[(String, String)], input: &str) -> String {
         ),
     )
     .unwrap();
+    common::temp_crate::use_workspace_cargo_config(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."),
+        dir.path(),
+    );
     std::fs::create_dir_all(dir.path().join("src")).unwrap();
     let mut mods = String::new();
     let mut dispatch = String::new();

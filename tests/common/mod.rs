@@ -373,6 +373,7 @@ pub fn build_crate_with(
         ),
     )
     .unwrap();
+    temp_crate::use_workspace_cargo_config(Path::new(env!("CARGO_MANIFEST_DIR")), dir);
     std::fs::create_dir_all(dir.join("src")).unwrap();
     let mut mods = String::new();
     let mut dispatch = String::new();
@@ -699,4 +700,6 @@ fn check_batch(
         }
     }
 }
+#[path = "../../compiler/tests/common/temp_crate.rs"]
+mod temp_crate;
 pub mod trees;

@@ -2,12 +2,13 @@
 //! brute-force oracles (here), and per area [`codegen`] (fixtures and the brute-force
 //! oracle of the generated code), [`instance`] (small random models, maps, evidence)
 //! and [`learn`] (automorphism groups, a brute-force SPN evaluator, a synthetic
-//! sampler). Test files include it with `mod common;`, the benches with `#[path]`.
+//! sampler); [`temp_crate`] sets up the temporary crates of generated code. Test files include it with `mod common;`, the benches with `#[path]`.
 #![allow(dead_code)]
 
 pub mod codegen;
 pub mod instance;
 pub mod learn;
+pub mod temp_crate;
 pub mod treemix;
 
 /// Every full assignment of variables with `classes[v]` classes each, the first
