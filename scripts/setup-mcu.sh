@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs what the firmware test (tests/mcu_qemu.rs) and the instruction-count
+# Installs what the firmware test (tests/mcu_qemu/) and the instruction-count
 # benchmark (scripts/mcu-bench.sh) need, from the project's own files:
 #
 # - the Rust targets thumbv7em-none-eabihf (Cortex-M4F), thumbv7m-none-eabi
@@ -17,7 +17,7 @@
 # success. The cache folder is $GRAPHSPN_MCU_TOOLS, default
 # ~/.cache/graphspn/mcu-tools; QEMU lands in $GRAPHSPN_MCU_TOOLS/qemu/usr/bin, and
 # its libraries in .../qemu/usr/lib/x86_64-linux-gnu and .../qemu/lib/x86_64-linux-gnu
-# (tests/mcu_qemu.rs and scripts/mcu-bench.sh set LD_LIBRARY_PATH themselves).
+# (tests/mcu_qemu/ and scripts/mcu-bench.sh set LD_LIBRARY_PATH themselves).
 set -euo pipefail
 
 TARGETS=(thumbv7em-none-eabihf thumbv7m-none-eabi riscv32imac-unknown-none-elf)

@@ -75,7 +75,7 @@ fn same_inputs_give_byte_identical_output() {
 }
 
 /// See [`no_panic_probe::link_check`]; the Cortex-M4F build of the same probe runs in
-/// `mcu_qemu.rs`.
+/// `tests/mcu_qemu/`.
 #[cfg(all(target_os = "linux", target_arch = "x86_64"))]
 #[test]
 fn generated_code_links_without_std_alloc_or_any_panic_path() {

@@ -1,6 +1,6 @@
 //! The firmware's fixed evidence and labels, reproducible anywhere: a SplitMix64
 //! stream from a documented seed, turned into `f32` values without rounding (every
-//! value is `k · 2⁻²⁴` for an integer `1 ≤ k ≤ 2²⁴`). `tests/mcu_qemu.rs` includes
+//! value is `k · 2⁻²⁴` for an integer `1 ≤ k ≤ 2²⁴`). `tests/mcu_qemu/` includes
 //! this file to recompute the same inputs on the host.
 
 /// Seed of the evidence stream of map `i` (in the firmware's map order) is

@@ -14,7 +14,7 @@
 //! - the host (a plain `std` program, no counts): the reference for bit-for-bit
 //!   comparisons with other builds of the same code.
 //!
-//! Output, one record per line (parsed by `tests/mcu_qemu.rs`):
+//! Output, one record per line (parsed by `tests/mcu_qemu/`):
 //! ```text
 //! firmware <target>
 //! calibration loop_instructions=<n> measured=<n> overhead=<n>

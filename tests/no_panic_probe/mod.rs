@@ -1,6 +1,6 @@
 #![allow(dead_code)]
 //! The no-panic link check shared by `generated_no_std.rs` (host) and
-//! `mcu_qemu.rs` (Cortex-M4F): see [`link_check`].
+//! `tests/mcu_qemu/` (Cortex-M4F): see [`link_check`].
 
 use std::path::PathBuf;
 use std::process::Command;
