@@ -215,3 +215,35 @@ fn bad_permutations_are_refused() {
         );
     }
 }
+
+/// A template of several variables refuses a structure setting out of its domain
+/// (no split, fewer than 2 subsets, no sums) with `BadParam`; a one-variable template
+/// uses none of them and builds whatever they are.
+#[test]
+fn settings_out_of_their_domain_are_refused_for_several_variables_only() {
+    let bad = [
+        DenseParams {
+            decompositions: 0,
+            ..DenseParams::default()
+        },
+        DenseParams {
+            subsets: 1,
+            ..DenseParams::default()
+        },
+        DenseParams {
+            sums: 0,
+            ..DenseParams::default()
+        },
+    ];
+    for p in &bad {
+        for n in [2usize, 3, 5] {
+            let r = dense_structure(n, 3, p, 1);
+            assert!(
+                matches!(r, Err(StructureError::BadParam(_))),
+                "{n} variables, {p:?}: {r:?}"
+            );
+        }
+        let one = dense_structure(1, 3, p, 1).unwrap();
+        check_valid(&one);
+    }
+}

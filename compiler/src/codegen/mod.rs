@@ -101,8 +101,9 @@ pub enum Arithmetic {
     /// multiplies and adds: no soft-float calls), each result kept only when its error
     /// bound is small enough (values within `2^-13` of themselves, local posteriors
     /// within `2^-10`), else recomputed in `f32` (see the generator's
-    /// `fixed` module). The rest of the module (evidence scaling, decomposition mixing,
-    /// MPE) stays `f32`. Needs [`Precision::F32`] and [`Vectorisation::Scalar`]. A
+    /// `fixed` module); the weighted local posteriors of `marginals` are summed in
+    /// Q1.31 integers (within `3·D·2^-31` per marginal, `D` decompositions). The rest
+    /// of the module (evidence scaling, decomposition weights, MPE) stays `f32`. Needs [`Precision::F32`] and [`Vectorisation::Scalar`]. A
     /// tree mixture computes its messages `ψ·b` in Q0.32 (integer multiply-adds,
     /// each entry within `η` of itself relatively, `η` in the report's
     /// `message_error`; kept `f32` for models whose smallest potential makes `η`

@@ -275,17 +275,54 @@ pub fn state_marginals_fx<
 ) {
     let places = t.places.iter().flat_map(|g| g.iter());
     for ((&mask, pl), rows) in t.decs.iter().zip(places).zip(post.chunks_exact(NV)) {
-        // At most `2^31·(1 + ε)`: the weights sum to 1 up to rounding.
-        let wu = u64::from(super::engine::masked_sum(wq, mask, 0u32));
+        let wu = fx_weight_of(wq, mask);
         for (&q, r) in pl.iter().zip(rows) {
             if let Some(o) = out.get_mut(usize::from(q)) {
                 for (oc, &pc) in o.iter_mut().zip(r) {
-                    let term = ((u64::from(fx_from_f32(pc).0) * wu) >> 32) as u32;
-                    *oc = f32::from_bits(oc.to_bits().wrapping_add(term));
+                    fx_add_term(oc, wu, pc);
                 }
             }
         }
     }
+}
+
+/// The stateless `marginals`' posterior pass without an FPU: like
+/// [`super::posterior_pass`], but each component's local posteriors are added, weighted
+/// by the sum of its decompositions' weights `wq` (Q1.31, see [`fx_weights`]), into `out`
+/// as Q1.31 integers held in the `f32` bits, as [`state_marginals_fx`] does (same
+/// bound: within `3·D·2^-31` absolute of the float sum). Call with `out` zeroed and
+/// finish with [`fx_finish_rows`].
+#[inline(never)]
+pub fn posterior_pass_fx<
+    W: super::Lanes<Scalar = f32>,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    t: &super::Tpl<W, L, NV, C>,
+    e: &[[f32; C]; N],
+    table: Option<&[[f32; C]; N]>,
+    wq: &[u32; D],
+    out: &mut [[f32; C]; N],
+) {
+    super::engine::posterior_scatter(t, e, table, |mask| fx_weight_of(wq, mask), fx_add_term, out);
+}
+
+/// The Q1.31 weight of a component in the decompositions of `mask`: at most
+/// `2^31·(1 + ε)`, the weights summing to 1 up to rounding.
+#[inline(always)]
+fn fx_weight_of<const D: usize>(wq: &[u32; D], mask: u64) -> u64 {
+    u64::from(super::engine::masked_sum(wq, mask, 0u32))
+}
+
+/// Adds `wu·p` (Q1.31 weight, posterior `p` as Q0.32, the high word of the product)
+/// to the Q1.31 sum held in `o`'s bits.
+#[inline(always)]
+fn fx_add_term(o: &mut f32, wu: u64, p: f32) {
+    let term = ((u64::from(fx_from_f32(p).0) * wu) >> 32) as u32;
+    *o = f32::from_bits(o.to_bits().wrapping_add(term));
 }
 
 /// Turns the Q1.31 sums [`state_marginals_fx`] left in `out`'s bits into `f32` values

@@ -166,9 +166,26 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool, prescale: bool) ->
     if one_pass {
         return one_pass_marginals(tpls, cx, checked, table);
     }
+    // Without an FPU (the fixed-point kernel's targets) the weighted posteriors are
+    // summed in Q1.31 integer multiply-adds, as the `State` mixes them: a soft-float
+    // multiply and add per entry cost about 85 instructions.
+    let (weights, pass, finish_rows) = if cx.fixed {
+        (
+            quote!(let wq = #rt::fx_weights(&w);),
+            quote!(posterior_pass_fx),
+            quote!(#rt::fx_finish_rows(out);),
+        )
+    } else {
+        (
+            TokenStream::new(),
+            quote!(posterior_pass),
+            TokenStream::new(),
+        )
+    };
+    let wref = if cx.fixed { quote!(&wq) } else { quote!(&w) };
     let calls = per_template(tpls, |tp| {
         let stat = &tp.stat;
-        quote!(#rt::posterior_pass(&#stat, e, table, &w, out);)
+        quote!(#rt::#pass(&#stat, e, table, #wref, out);)
     });
     quote! {
         /// Like [`marginals`], without validating the evidence.
@@ -176,10 +193,12 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool, prescale: bool) ->
             #table
             let acc = values(e, &ALL_UNKNOWN, table, false);
             let (l, w) = finish(&acc, #rt::log_scale(e, &ALL_UNKNOWN))?;
+            #weights
             for row in out.iter_mut() {
                 *row = [0.0; NUM_CLASSES];
             }
             #calls
+            #finish_rows
             Ok(l)
         }
 

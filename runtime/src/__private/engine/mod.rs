@@ -276,12 +276,41 @@ pub fn posterior_pass<
     w: &[W::Scalar; D],
     out: &mut [[W::Scalar; C]; N],
 ) {
+    posterior_scatter(
+        t,
+        e,
+        table,
+        |mask| weight(w, mask),
+        |o, wl, p| *o += wl * p,
+        out,
+    );
+}
+
+/// The loop of [`posterior_pass`]: each lane group's local posteriors, each component's
+/// added into its places' rows of `out` by `add(entry, weight_of(mask), posterior)`
+/// (`mask`: the component's decompositions).
+#[inline(always)]
+pub(crate) fn posterior_scatter<
+    W: Lanes,
+    A: Copy,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+>(
+    t: &Tpl<W, L, NV, C>,
+    e: &[[W::Scalar; C]; N],
+    table: Option<&[[W::Scalar; C]; N]>,
+    weight_of: impl Fn(u64) -> A,
+    add: impl Fn(&mut W::Scalar, A, W::Scalar),
+    out: &mut [[W::Scalar; C]; N],
+) {
     for (g, p) in t.places.iter().enumerate() {
         let (_, post) = post_group(t, e, table, p);
         let masks = t.decs.get(g * L..).unwrap_or(&[]);
-        let mut wl = [W::Scalar::ZERO; L];
+        let mut wl = [weight_of(0); L];
         for (o, &mask) in wl.iter_mut().zip(masks) {
-            *o = weight(w, mask);
+            *o = weight_of(mask);
         }
         for (i, pv) in post.iter().enumerate() {
             let pv = class_lanes::<W, L, C>(pv);
@@ -290,7 +319,7 @@ pub fn posterior_pass<
                     continue;
                 };
                 for (oc, pc) in o.iter_mut().zip(&pv) {
-                    *oc += wl * pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
+                    add(oc, wl, pc.get(l).copied().unwrap_or(W::Scalar::ZERO));
                 }
             }
         }
