@@ -749,3 +749,40 @@ fn soft_em_step_is_the_m_step_on_expected_counts() {
         }
     }
 }
+
+/// A sample whose path through one child of the root has probability `1e-640`
+/// (two weights of `1e-320`, ln ≈ −1474, far below `f64`'s range) next to a child of
+/// probability 1/4: the log-sum-exp at the root is shifted by its largest term, so
+/// the log-likelihood is ln(½·1e-640 + ½·¼) = ln(1/8), not `-inf` or an underflowed
+/// sum.
+#[test]
+fn a_root_over_children_1400_nats_apart_keeps_its_log_likelihood() {
+    use graphspn_compiler::spn::Spn;
+    let leaf = |var, class| Node::Leaf { var, class };
+    let sum = |children: Vec<u32>, weights: Vec<f64>| Node::Sum { children, weights };
+    let nodes = vec![
+        leaf(0, 0),
+        leaf(0, 1),
+        leaf(1, 0),
+        leaf(1, 1),
+        sum(vec![0, 1], vec![1e-320, 1.0]),
+        sum(vec![2, 3], vec![1e-320, 1.0]),
+        Node::Product {
+            children: vec![4, 5],
+        },
+        sum(vec![0, 1], vec![0.5, 0.5]),
+        sum(vec![2, 3], vec![0.5, 0.5]),
+        Node::Product {
+            children: vec![7, 8],
+        },
+        sum(vec![6, 9], vec![0.5, 0.5]),
+    ];
+    let spn = Spn {
+        classes: vec![2, 2],
+        nodes,
+        root: 10,
+    };
+    let ll = log_likelihoods(&spn, &[vec![0, 0], vec![1, 1]]).unwrap();
+    assert!((ll[0] - (0.125f64).ln()).abs() < 1e-12, "{}", ll[0]);
+    assert!((ll[1] - (0.5f64 + 0.125).ln()).abs() < 1e-12, "{}", ll[1]);
+}
