@@ -18,7 +18,7 @@ const MODEL_COLOURS: [&str; NUM_MODELS] = [
     "#9467bd", "#d62728", "#1f77b4", "#2ca02c", "#ff9896", "#9ecae1", "#a1d99b",
 ];
 
-/// An SVG line chart frame: returns (svg prefix, x→px, y→px) for data in [x0,x1]×[0,1].
+/// An SVG line chart frame: returns (svg prefix, x→px, y→px) for data in `[x0, x1] × [0, 1]`.
 struct Frame {
     w: f64,
     h: f64,

@@ -163,7 +163,7 @@ pub fn graphspn_rows(rows: &[Vec<f64>], exponent: f64, prior: &[f64], beta: f64)
 
 /// GraphSPN marginals of `map` (its instance `instance`, with no evidence set) given
 /// evidence rows prepared by [`graphspn_rows`] with the setting's exponent and
-/// prior correction (`prior`: the training maps' [`class_prior`]), mixed as the
+/// prior correction (`prior`: the training maps' `class_prior`), mixed as the
 /// setting says.
 pub fn graphspn_marginals(
     instance: &ComponentInstance,

@@ -28,7 +28,7 @@ pub struct NoveltyResult {
     pub novel: bool,
     /// Number of variables (places).
     pub variables: usize,
-    /// Log-likelihood per variable (natural log), in [`MODELS`] order.
+    /// Log-likelihood per variable (natural log), in `MODELS` order.
     pub score: Scores<f64>,
 }
 

@@ -179,7 +179,7 @@ pub struct GraphSpnSetting {
     #[serde(default)]
     pub mixing: Mixing,
     /// Class-prior correction β: evidence rows are multiplied by `prior^-β` (the
-    /// training maps' class shares; see [`super::reproduce::graphspn_rows`]). 0 = none,
+    /// training maps' class shares; see `graphspn_rows` in `reproduce.rs`). 0 = none,
     /// 1 = divided by the prior entirely (finite, in [0, 1]).
     #[serde(default)]
     pub prior_correction: f64,

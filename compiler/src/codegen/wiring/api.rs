@@ -207,7 +207,7 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool, prescale: bool) ->
 }
 
 /// `marginals` in one pass: every lane group evaluated once with its posteriors
-/// (values and posteriors stored as in the [`State`]'s cache), the decompositions
+/// (values and posteriors stored as in the `State`'s cache), the decompositions
 /// mixed from the values, then the weighted posteriors added up.
 fn one_pass_marginals(
     tpls: &[Tpl],

@@ -206,7 +206,7 @@ impl ComponentInstance {
         Ok(v)
     }
 
-    /// Max-product labelling (as [`super::InstanceModel::mpe`]): the best decomposition's
+    /// Max-product labelling (as [`crate::instance::InstanceModel::mpe`]): the best decomposition's
     /// best induced tree, each component backtracked in its template. Costs one full
     /// max-product pass, the backtracking of one decomposition's components and one full
     /// clamped pass for `log_probability`.

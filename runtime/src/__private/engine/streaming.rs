@@ -7,7 +7,7 @@ use crate::__private::{Lanes, Real};
 use super::{Acc, Tpl, accumulate, class_lanes, gather, weight};
 
 /// Streaming state and one-pass marginals: re-evaluates group `g` of a template on
-/// evidence `e` (`table`: see [`gather`]) and stores each real component's value into `val` (indexed by
+/// evidence `e` (`table`: see [`gather`](crate::__private::gather)) and stores each real component's value into `val` (indexed by
 /// component within the template) and its local posteriors into `post` (rows
 /// `u·NV ..`).
 #[inline(never)]

@@ -59,7 +59,7 @@
 //!
 //! # Passes
 //!
-//! - value ([`tree_value`]): one post-order sweep per forest with a stack of one row per
+//! - value (`tree_value` in `pass.rs`): one post-order sweep per forest with a stack of one row per
 //!   depth (`O(height · C)` memory): `log_likelihood`, `labelled_log_likelihood`, and
 //!   the max-product value of `mpe`;
 //! - stored upward pass and downward pass (`pass.rs`): the messages of every place

@@ -1,6 +1,6 @@
 //! The stateless passes of generated tree-mixture code: log-likelihood (labelled or
 //! not), marginals and MPE (see the module docs of `tree`). Where the generator chose
-//! to ([`FactorCache`]: always on SIMD hosts, on microcontrollers when the table fits
+//! to ([`FactorCache`](super::FactorCache): always on SIMD hosts, on microcontrollers when the table fits
 //! the stack budget) an entry point first computes the evidence factor `φ` of every
 //! place once ([`Cached`]: `O(places · C)` scratch), which every forest's passes then
 //! share; otherwise each pass computes `φ` where it needs it ([`Rows`]).
@@ -206,7 +206,7 @@ fn root_value<V: Lanes, const K: usize>(b: &[V; K], max: bool) -> V::Scalar {
     if max { hmax(b) } else { hsum(b) }
 }
 
-/// How many forests a value sweep runs side by side (see [`tree_values_n`]): one in
+/// How many forests a value sweep runs side by side (see `tree_values_n`): one in
 /// scalar code (`lanes` = 1: microcontrollers); on SIMD hosts four, or two, as long as
 /// their stacks of rows (`rows` = the largest height + 2 each) hold no more rows than
 /// the map has places, so an entry point's stack stays near that of `marginals`
