@@ -299,7 +299,7 @@ fn pruning_keeps_a_valid_normalised_spn() {
             _ => 0,
         })
         .sum();
-    let removed = prune(&mut spn, 1e-3);
+    let removed = prune(&mut spn, 1e-3).unwrap();
     assert!(removed > 0, "nothing pruned");
     assert_eq!(removed, below, "the count of removed edges");
     assert!(num_weights(&spn) < before);
@@ -327,6 +327,17 @@ fn pruning_keeps_a_valid_normalised_spn() {
     // log_likelihood agrees with the oracle.
     let x = &samples[0];
     assert!((log_likelihood(&spn, x).unwrap() - value(&spn, x).ln()).abs() < 1e-12);
+    // An SPN with a child that does not precede its parent (here: one past the last
+    // node) is refused as training refuses it, and left unchanged.
+    let mut bad = spn.clone();
+    let n = bad.nodes.len() as u32;
+    if let Node::Sum { children, .. } = &mut bad.nodes[bad.root as usize] {
+        children[0] = n;
+    }
+    let kept = bad.clone();
+    let r = prune(&mut bad, 1e-3);
+    assert!(matches!(r, Err(TrainError::BadSpn { .. })), "{r:?}");
+    assert_eq!(bad, kept);
 }
 
 /// On a selective SPN (one sum over the indicators of one variable: a sample reaches
@@ -628,7 +639,7 @@ fn training_prunes_only_with_a_positive_threshold() {
     )
     .unwrap();
     let mut by_hand = plain.clone();
-    assert!(prune(&mut by_hand, 1e-3) > 0, "nothing to prune");
+    assert!(prune(&mut by_hand, 1e-3).unwrap() > 0, "nothing to prune");
     let mut pruned = start.clone();
     let settings = TrainingSettings {
         prune_threshold: 1e-3,

@@ -540,7 +540,7 @@ pub fn train_tied(
     }
     bar.finish_and_clear();
     if settings.prune_threshold > 0.0 {
-        prune(spn, settings.prune_threshold);
+        prune(spn, settings.prune_threshold)?;
     }
     Ok(report)
 }
@@ -549,8 +549,11 @@ pub fn train_tied(
 /// children (the heaviest ones stay), then drops nodes no longer reachable from
 /// the root, renumbers (keeping topological order) and renormalises. Returns the
 /// number of sum edges removed. Completeness and decomposability are kept: only
-/// whole sum children are dropped.
-pub fn prune(spn: &mut Spn, threshold: f64) -> usize {
+/// whole sum children are dropped. An SPN that training would refuse (a child that
+/// does not precede its parent, a root out of range, ...) gives the same
+/// [`TrainError::BadSpn`] and is left unchanged.
+pub fn prune(spn: &mut Spn, threshold: f64) -> Result<usize, TrainError> {
+    Flat::new(spn)?;
     let mut removed = 0;
     for n in &mut spn.nodes {
         if let Node::Sum { children, weights } = n {
@@ -572,20 +575,17 @@ pub fn prune(spn: &mut Spn, threshold: f64) -> usize {
         }
     }
     // Reachability from the root.
+    // Checked by `Flat::new`: the root is a node and every child precedes its parent.
     let n = spn.nodes.len();
     let mut live = vec![false; n];
-    if (spn.root as usize) < n {
-        live[spn.root as usize] = true;
-    }
+    live[spn.root as usize] = true;
     for i in (0..n).rev() {
         if !live[i] {
             continue;
         }
         if let Node::Sum { children, .. } | Node::Product { children } = &spn.nodes[i] {
             for &c in children {
-                if (c as usize) < n {
-                    live[c as usize] = true;
-                }
+                live[c as usize] = true;
             }
         }
     }
@@ -609,8 +609,8 @@ pub fn prune(spn: &mut Spn, threshold: f64) -> usize {
         nodes.push(node);
     }
     spn.nodes = nodes;
-    spn.root = new_id.get(spn.root as usize).copied().unwrap_or(0);
-    removed
+    spn.root = new_id[spn.root as usize];
+    Ok(removed)
 }
 
 /// Log-likelihood (natural log) of one complete sample under `spn`, by a direct
