@@ -273,17 +273,7 @@ pub fn state_marginals_fx<
     wq: &[u32; D],
     out: &mut [[f32; C]; N],
 ) {
-    let places = t.places.iter().flat_map(|g| g.iter());
-    for ((&mask, pl), rows) in t.decs.iter().zip(places).zip(post.chunks_exact(NV)) {
-        let wu = fx_weight_of(wq, mask);
-        for (&q, r) in pl.iter().zip(rows) {
-            if let Some(o) = out.get_mut(usize::from(q)) {
-                for (oc, &pc) in o.iter_mut().zip(r) {
-                    fx_add_term(oc, wu, pc);
-                }
-            }
-        }
-    }
+    super::engine::cached_scatter(t, post, |mask| fx_weight_of(wq, mask), fx_add_term, out);
 }
 
 /// The stateless `marginals`' posterior pass without an FPU: like

@@ -248,13 +248,40 @@ pub fn state_marginals<
     w: &[W::Scalar; D],
     out: &mut [[W::Scalar; C]; N],
 ) {
+    cached_scatter(
+        t,
+        post,
+        |mask| weight(w, mask),
+        |o, wu, p| *o += wu * p,
+        out,
+    );
+}
+
+/// The loop of [`state_marginals`]: each cached component's local posteriors added
+/// into its places' rows of `out` by `add(entry, weight_of(mask), posterior)` (`mask`:
+/// the component's decompositions).
+#[inline(always)]
+pub(crate) fn cached_scatter<
+    W: Lanes,
+    A: Copy,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+>(
+    t: &Tpl<W, L, NV, C>,
+    post: &[[W::Scalar; C]],
+    weight_of: impl Fn(u64) -> A,
+    add: impl Fn(&mut W::Scalar, A, W::Scalar),
+    out: &mut [[W::Scalar; C]; N],
+) {
     let places = t.places.iter().flat_map(|g| g.iter());
     for ((&mask, pl), rows) in t.decs.iter().zip(places).zip(post.chunks_exact(NV)) {
-        let wu = weight(w, mask);
+        let wu = weight_of(mask);
         for (&q, r) in pl.iter().zip(rows) {
             if let Some(o) = out.get_mut(usize::from(q)) {
                 for (oc, &pc) in o.iter_mut().zip(r) {
-                    *oc += wu * pc;
+                    add(oc, wu, pc);
                 }
             }
         }
