@@ -459,16 +459,22 @@ fn lane_items(tpls: &[Tpl], cx: &Context) -> TokenStream {
         return TokenStream::new();
     }
     let rt = rt();
-    let t = cx.l.ty();
-    let v_type = match (cx.simd_lanes, cx.l.is_f32()) {
-        (1, _) => quote!(#t),
-        (_, true) => quote!(#rt::Lanes32),
-        (_, false) => quote!(#rt::Lanes64),
-    };
+    let v_type = lane_vector(cx);
     quote! {
         use #rt::Lanes;
         /// The lane vector of block templates.
         type V = #v_type;
+    }
+}
+
+/// The lane vector type of SIMD code (the scalar type without SIMD).
+fn lane_vector(cx: &Context) -> TokenStream {
+    let rt = rt();
+    let t = cx.l.ty();
+    match (cx.simd_lanes, cx.l.is_f32()) {
+        (1, _) => quote!(#t),
+        (_, true) => quote!(#rt::Lanes32),
+        (_, false) => quote!(#rt::Lanes64),
     }
 }
 
@@ -549,8 +555,8 @@ fn component_int(components: usize) -> (Ident, usize) {
     }
 }
 
-/// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, see
-/// `state.rs`), their scales, fused form and the sum of their shifts, every component's
+/// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, and
+/// the posterior rows per decomposition, see `state.rs`), their scales, fused form and the sum of their shifts, every component's
 /// value and posteriors, the values' partial products, the decomposition weights.
 fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     let (n, c, scalar) = (cx.n, cx.c, cx.scalar);
@@ -558,7 +564,14 @@ fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     let acc = 2 * scalar + scalar.max(4);
     let chunks = tpls.iter().map(state::value_chunks).sum::<usize>().max(1);
     let row_tables = if cx.simd_lanes > 1 { 2 } else { 1 };
+    // SIMD hosts also keep every place's posterior row per decomposition.
+    let place_rows = if cx.simd_lanes > 1 {
+        cx.d_count * n * c * scalar
+    } else {
+        0
+    };
     n * c * scalar * row_tables
+        + place_rows
         + n * scalar
         + n * fused_bytes(c, scalar)
         + 8

@@ -5,7 +5,7 @@ use proc_macro2::TokenStream;
 use quote::{format_ident, quote};
 
 use super::super::emit::{int, rt};
-use super::{Context, Tpl, component_int};
+use super::{Context, Tpl, component_int, lane_vector};
 
 /// The `State` type, its constructor and its methods.
 pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
@@ -16,7 +16,10 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let queries = query_methods(tpls, cx);
     let rt = rt();
     let new_table = if table {
-        quote!(scaled: [[0.0; NUM_CLASSES]; NUM_PLACES],)
+        quote! {
+            scaled: [[0.0; NUM_CLASSES]; NUM_PLACES],
+            dpost: [[[0.0; NUM_CLASSES]; NUM_PLACES]; NUM_DECOMPOSITIONS],
+        }
     } else {
         TokenStream::new()
     };
@@ -70,6 +73,9 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
         quote! {
             /// Every row of `ev` scaled to a largest entry of 1 (what the gathers read).
             scaled: Evidence,
+            /// Every place's local posterior row per decomposition, `dpost[d][place]`
+            /// (copies of `post`'s rows: `marginals` then mixes contiguous memory).
+            dpost: [[[#t; NUM_CLASSES]; NUM_PLACES]; NUM_DECOMPOSITIONS],
         }
     } else {
         TokenStream::new()
@@ -156,23 +162,52 @@ pub(super) fn cached_marginals(tpls: &[Tpl], post: &TokenStream, w: &TokenStream
         .collect()
 }
 
+/// What the cache methods do with the rows only SIMD hosts keep (`table`): the scaled
+/// evidence rows and the posterior rows per decomposition (see [`state_type`]).
+struct HostTables {
+    /// The gathers' source of scaled rows (`None` without the table).
+    source: TokenStream,
+    /// A fresh state's scaled rows.
+    fresh_table: TokenStream,
+    /// Storing `row` for `place` into the scaled rows.
+    store_table: TokenStream,
+    /// Every place's posterior rows per decomposition, from the component cache.
+    spread_all: TokenStream,
+}
+
+/// [`HostTables`]: code for SIMD hosts (`table`), nothing otherwise.
+fn host_tables(table: bool) -> HostTables {
+    let rt = rt();
+    if !table {
+        return HostTables {
+            source: quote!(None),
+            fresh_table: TokenStream::new(),
+            store_table: TokenStream::new(),
+            spread_all: TokenStream::new(),
+        };
+    }
+    HostTables {
+        source: quote!(Some(&self.scaled)),
+        fresh_table: quote!(self.scaled = NO_EVIDENCE;),
+        store_table: quote! {
+            if let Some(s) = self.scaled.get_mut(place) {
+                *s = #rt::scale_row(&row);
+            }
+        },
+        spread_all: quote!(#rt::spread_all(&self.post, &PLACE_SLOTS, &mut self.dpost);),
+    }
+}
+
 /// The cache's private methods: evaluating one lane group of a template, one unit
 /// (global group), re-mixing the decompositions, refreshing everything, storing a row.
 fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
-    let (source, fresh_table, store_table) = if table {
-        (
-            quote!(Some(&self.scaled)),
-            quote!(self.scaled = NO_EVIDENCE;),
-            quote! {
-                if let Some(s) = self.scaled.get_mut(place) {
-                    *s = #rt::scale_row(&row);
-                }
-            },
-        )
-    } else {
-        (quote!(None), TokenStream::new(), TokenStream::new())
-    };
+    let HostTables {
+        source,
+        fresh_table,
+        store_table,
+        spread_all,
+    } = host_tables(table);
     let (comp_t, _) = component_int(tpls.iter().map(|tp| tp.members.len()).sum());
     let mut eval_fns = TokenStream::new();
     let mut update = TokenStream::new();
@@ -186,11 +221,17 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
         let (first_component, first_row) = (int(tp.first_component), int(tp.first_row));
         let groups = int(tp.groups());
         let fc = format_ident!("{f}_components");
+        let spread = if table {
+            quote!(if let Some(p) = self.post.get(#first_row..) { #rt::spread_components(&#stat, comps, #first_component, p, &mut self.dpost); })
+        } else {
+            TokenStream::new()
+        };
         eval_fns.extend(quote! {
             #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, #source, g, v, p); } }
             #[inline(never)] fn #fc(&mut self, comps: &[#comp_t]) {
                 if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_components(&#stat, &self.ev, #source, comps, #first_component, v, p); }
                 if let (Some(v), Some(ps)) = (self.val.get(#first_component..), self.parts.get_mut(#chunk0..#chunk_end)) { #rt::update_chunks(&#stat, comps, #first_component, v, ps); }
+                #spread
             }
         });
         update.extend(quote!(self.#fc(comps);));
@@ -224,6 +265,7 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
         /// Evaluates every component (after `set_all`, or on the first use of a new state).
         fn refresh(&mut self) {
             #refresh
+            #spread_all
             self.remix();
             self.ready = true;
         }
@@ -338,7 +380,11 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
     // are added once instead, weighted by all its decompositions (a component shared
     // by several decompositions costs one row), in Q1.31 integer multiply-adds: the
     // soft-float mix was three quarters of a Cortex-M3 step.
-    let mix = if !cx.fixed {
+    let simd = cx.simd_lanes > 1;
+    let mix = if simd {
+        let (v, lanes) = (lane_vector(cx), int(cx.simd_lanes));
+        quote!(#rt::mix_decompositions::<#v, #lanes, NUM_CLASSES, NUM_PLACES, NUM_DECOMPOSITIONS>(&self.dpost, &self.w, out);)
+    } else if !cx.fixed {
         quote!(#rt::mix_places(&self.post, &PLACE_SLOTS, &self.w, out);)
     } else {
         let calls: TokenStream = tpls
@@ -355,6 +401,15 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
             }
             #calls
             #rt::fx_finish_rows(out);
+        }
+    };
+    let mix_one = if simd {
+        quote!(#rt::mix_place(&self.dpost, &self.w, place, row);)
+    } else {
+        quote! {
+            if let Some(slots) = PLACE_SLOTS.get(place) {
+                #rt::mix_rows(&self.post, slots, &self.w, row);
+            }
         }
     };
     let err = quote!(::graphspn_runtime::EvidenceError);
@@ -383,9 +438,7 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
         pub fn marginal(&mut self, place: usize, row: &mut [#t; NUM_CLASSES]) -> Result<(), #err> {
             Self::place_index(place)?;
             self.log_likelihood()?;
-            if let Some(slots) = PLACE_SLOTS.get(place) {
-                #rt::mix_rows(&self.post, slots, &self.w, row);
-            }
+            #mix_one
             Ok(())
         }
 

@@ -324,6 +324,125 @@ pub fn mix_rows<T: Real, const C: usize, const D: usize>(
     *out = acc;
 }
 
+/// Streaming state on SIMD hosts: copies the cached local posteriors of this
+/// template's components among `comps` (global indices, this template's from
+/// `first`; `post` holds its rows `k·NV ..`) into the place-major rows of every
+/// decomposition containing them, `dpost[d][place]` (what [`mix_decompositions`]
+/// reads).
+#[inline(never)]
+pub fn spread_components<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+    I: Copy + Into<u64>,
+>(
+    t: &Tpl<W, L, NV, C>,
+    comps: &[I],
+    first: usize,
+    post: &[[W::Scalar; C]],
+    dpost: &mut [[[W::Scalar; C]; N]; D],
+) {
+    for &c in comps {
+        let Some(k) = local_component(t, c, first) else {
+            continue;
+        };
+        let (Some(pl), Some(&mask)) = (
+            t.places.get(k / L).and_then(|g| g.get(k % L)),
+            t.decs.get(k),
+        ) else {
+            continue;
+        };
+        for (v, &q) in pl.iter().enumerate() {
+            let Some(&row) = post.get(k * NV + v) else {
+                continue;
+            };
+            for (d, rows) in dpost.iter_mut().enumerate() {
+                if let (true, Some(o)) = ((mask >> d) & 1 == 1, rows.get_mut(usize::from(q))) {
+                    *o = row;
+                }
+            }
+        }
+    }
+}
+
+/// Streaming state on SIMD hosts: every place's rows per decomposition,
+/// `dpost[d][q] = post[slots[q][d]]` (a row of zeros where a slot is out of range).
+#[inline(never)]
+pub fn spread_all<T: Real, const C: usize, const D: usize, const N: usize>(
+    post: &[[T; C]],
+    slots: &[[u32; D]; N],
+    dpost: &mut [[[T; C]; N]; D],
+) {
+    for (q, s) in slots.iter().enumerate() {
+        for (rows, &slot) in dpost.iter_mut().zip(s) {
+            if let Some(o) = rows.get_mut(q) {
+                *o = post.get(slot as usize).copied().unwrap_or([T::ZERO; C]);
+            }
+        }
+    }
+}
+
+/// Every place's marginal from the place-major rows of the decompositions:
+/// `out = Σ_d w_d · dpost[d]`, `L` entries per vector multiply-add over contiguous
+/// memory (no row indices; on a SIMD host 1.4× faster than [`mix_places`]'s rows
+/// gathered through the component cache, whose 40-byte rows straddle cache lines).
+#[inline(never)]
+pub fn mix_decompositions<
+    W: Lanes,
+    const L: usize,
+    const C: usize,
+    const N: usize,
+    const D: usize,
+>(
+    dpost: &[[[W::Scalar; C]; N]; D],
+    w: &[W::Scalar; D],
+    out: &mut [[W::Scalar; C]; N],
+) {
+    let (chunks, rest) = out.as_flattened_mut().as_chunks_mut::<L>();
+    let tail = chunks.len() * L;
+    for (i, o) in chunks.iter_mut().enumerate() {
+        let mut acc = W::ZERO;
+        for (rows, &wd) in dpost.iter().zip(w) {
+            if let Some(x) = rows.as_flattened().as_chunks::<L>().0.get(i) {
+                acc = W::from_lanes(x).mul_add(W::splat(wd), acc);
+            }
+        }
+        *o = acc.to_lanes::<L>();
+    }
+    for (j, o) in rest.iter_mut().enumerate() {
+        let mut acc = W::Scalar::ZERO;
+        for (rows, &wd) in dpost.iter().zip(w) {
+            if let Some(&x) = rows.as_flattened().get(tail + j) {
+                acc += wd * x;
+            }
+        }
+        *o = acc;
+    }
+}
+
+/// One place's marginal from the place-major rows of the decompositions (see
+/// [`mix_decompositions`]).
+#[inline]
+pub fn mix_place<T: Real, const C: usize, const N: usize, const D: usize>(
+    dpost: &[[[T; C]; N]; D],
+    w: &[T; D],
+    place: usize,
+    out: &mut [T; C],
+) {
+    let mut acc = [T::ZERO; C];
+    for (rows, &wd) in dpost.iter().zip(w) {
+        if let Some(r) = rows.get(place) {
+            for (o, &v) in acc.iter_mut().zip(r) {
+                *o += wd * v;
+            }
+        }
+    }
+    *out = acc;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -399,5 +518,87 @@ mod tests {
             (parts[1][0].m, parts[1][0].e),
             (fresh[1][0].m, fresh[1][0].e)
         );
+    }
+
+    /// Four places, three decompositions of two-place components (component 0 is in
+    /// decompositions 0 and 1), three classes: `(template, slots)`, where `slots[q][d]`
+    /// is the row of place `q`'s component in decomposition `d`.
+    #[allow(clippy::type_complexity)]
+    fn pairs_template() -> (Tpl<f32, 1, 2, 3>, [[u32; 3]; 4]) {
+        fn unused(_: &[[f32; 3]; 2]) -> f32 {
+            0.0
+        }
+        fn unused_post(_: &[[f32; 3]; 2], _: &mut [[f32; 3]; 2]) -> f32 {
+            0.0
+        }
+        fn unused_mpe(_: &[[f32; 3]; 2], _: &mut [[u16; 2]; 1]) -> f32 {
+            0.0
+        }
+        static PLACES: [[[u16; 2]; 1]; 5] = [[[0, 1]], [[2, 3]], [[3, 2]], [[1, 2]], [[3, 0]]];
+        static DECS: [u64; 5] = [0b011, 0b001, 0b010, 0b100, 0b100];
+        let t = Tpl {
+            places: &PLACES,
+            decs: &DECS,
+            log: false,
+            fwd: unused,
+            post: unused_post,
+            max: unused,
+            mpe: unused_mpe,
+        };
+        (t, [[0, 0, 9], [1, 1, 6], [2, 5, 7], [3, 4, 8]])
+    }
+
+    /// The place-major rows per decomposition, built whole or updated per component,
+    /// give the same marginals as mixing the component cache's rows through the slots,
+    /// in lanes of eight (with a scalar tail) and one scalar at a time.
+    #[test]
+    fn decomposition_rows_mix_like_the_component_rows() {
+        let (t, slots) = pairs_template();
+        let mut post = [[0f32; 3]; 10];
+        for (i, r) in post.iter_mut().enumerate() {
+            for (k, x) in r.iter_mut().enumerate() {
+                *x = 0.1 + ((i * 7 + k * 3) % 11) as f32 / 11.0;
+            }
+        }
+        let w = [0.5f32, 0.3, 0.2];
+        let mut dpost = [[[0f32; 3]; 4]; 3];
+        spread_all(&post, &slots, &mut dpost);
+        let check = |dpost: &[[[f32; 3]; 4]; 3], post: &[[f32; 3]]| {
+            let mut want = [[0f32; 3]; 4];
+            mix_places(post, &slots, &w, &mut want);
+            let mut lanes = [[0f32; 3]; 4];
+            mix_decompositions::<crate::__private::Lanes32, 8, 3, 4, 3>(dpost, &w, &mut lanes);
+            let mut scalar = [[0f32; 3]; 4];
+            mix_decompositions::<f32, 1, 3, 4, 3>(dpost, &w, &mut scalar);
+            for (q, want) in want.iter().enumerate() {
+                let mut one = [0f32; 3];
+                mix_place(dpost, &w, q, &mut one);
+                for k in 0..3 {
+                    for got in [lanes[q][k], scalar[q][k], one[k]] {
+                        assert!(
+                            (got - want[k]).abs() < 1e-6,
+                            "place {q} class {k}: {got} vs {}",
+                            want[k]
+                        );
+                    }
+                }
+            }
+        };
+        check(&dpost, &post);
+        // Component 3 (rows 6 and 7, decomposition 2) changes: spreading it alone (as
+        // global component 13, this template's components being 10 ..; 2 and 40 are
+        // another template's and skipped) matches spreading every row again.
+        post[6] = [0.9, 0.05, 0.05];
+        post[7] = [0.2, 0.7, 0.1];
+        let mut stale = dpost;
+        spread_components(&t, &[2u8, 13, 40], 10, &post, &mut stale);
+        spread_all(&post, &slots, &mut dpost);
+        assert_eq!(stale, dpost);
+        check(&dpost, &post);
+        // The shared component 0 is written into both of its decompositions.
+        post[0] = [0.3, 0.3, 0.4];
+        spread_components(&t, &[0u8], 0, &post, &mut stale);
+        assert_eq!((stale[0][0], stale[1][0]), (post[0], post[0]));
+        assert_eq!(stale[2][0], post[9]);
     }
 }
