@@ -431,7 +431,13 @@ pub fn module(
         class_names: model.classes.names(),
         evidence_exponent: 1,
     });
-    let rows = int(layout.rows);
+    // The component cache's rows: the scalar state's and the one-pass marginals'.
+    let num_rows = if cx.simd_lanes == 1 || passes.one_pass {
+        let rows = int(layout.rows);
+        quote!(const NUM_ROWS: usize = #rows;)
+    } else {
+        TokenStream::new()
+    };
     let functions = tpls.iter().map(|tp| &tp.code);
     let value_pass = api::value_pass(&tpls, &cx);
     let stateless = api::stateless_api(&tpls, &cx, passes.one_pass, passes.prescale);
@@ -441,7 +447,7 @@ pub fn module(
         #lane_items
         #constants
         static ALL_UNKNOWN: Labels = [UNKNOWN; NUM_PLACES];
-        const NUM_ROWS: usize = #rows;
+        #num_rows
         #(#functions)*
         #tables
         #value_pass
@@ -528,20 +534,27 @@ fn tables(tpls: &[Tpl], uniques: &[Unique], layout: &Layout, cx: &Context) -> (T
         v.resize(max_comps, quote!(#comp_t::MAX));
         array(v)
     }));
-    let slots = array(
-        layout
-            .place_slots
-            .iter()
-            .map(|ss| array(ss.iter().map(|&s| proc_macro2::Literal::u32_unsuffixed(s)))),
-    );
-    bytes += cx.n * max_comps * comp_bytes + cx.n * cx.d_count * 4;
+    bytes += cx.n * max_comps * comp_bytes;
     let max_comps = int(max_comps);
     out.extend(quote! {
         /// Per place: the components containing it, ascending (`MAX`: none).
         static PLACE_COMPONENTS: [[#comp_t; #max_comps]; NUM_PLACES] = #comps;
-        /// Per place and decomposition: the place's row in the state's posteriors.
-        static PLACE_SLOTS: [[u32; NUM_DECOMPOSITIONS]; NUM_PLACES] = #slots;
     });
+    // Scalar code's state mixes a place's rows through the component cache; SIMD
+    // hosts' state keeps the rows per decomposition instead (see `state.rs`).
+    if cx.simd_lanes == 1 {
+        let slots = array(
+            layout
+                .place_slots
+                .iter()
+                .map(|ss| array(ss.iter().map(|&s| proc_macro2::Literal::u32_unsuffixed(s)))),
+        );
+        bytes += cx.n * cx.d_count * 4;
+        out.extend(quote! {
+            /// Per place and decomposition: the place's row in the state's posteriors.
+            static PLACE_SLOTS: [[u32; NUM_DECOMPOSITIONS]; NUM_PLACES] = #slots;
+        });
+    }
     (out, bytes)
 }
 
@@ -555,29 +568,30 @@ fn component_int(components: usize) -> (Ident, usize) {
     }
 }
 
-/// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, and
-/// the posterior rows per decomposition, see `state.rs`), their scales, fused form and the sum of their shifts, every component's
-/// value and posteriors, the values' partial products, the decomposition weights.
+/// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, see
+/// `state.rs`), their scales, fused form and the sum of their shifts, every component's
+/// value, the posterior rows (per component, or on SIMD hosts per place and
+/// decomposition), the values' partial products, the decomposition weights.
 fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     let (n, c, scalar) = (cx.n, cx.c, cx.scalar);
     // `Acc`: a mantissa, an `i32` exponent and a log, aligned to the scalar.
     let acc = 2 * scalar + scalar.max(4);
     let chunks = tpls.iter().map(state::value_chunks).sum::<usize>().max(1);
     let row_tables = if cx.simd_lanes > 1 { 2 } else { 1 };
-    // SIMD hosts also keep every place's posterior row per decomposition.
-    let place_rows = if cx.simd_lanes > 1 {
-        cx.d_count * n * c * scalar
+    // The components' posterior rows: the component cache in scalar code, every
+    // place's row per decomposition on SIMD hosts.
+    let post_rows = if cx.simd_lanes > 1 {
+        cx.d_count * n
     } else {
-        0
+        layout.rows
     };
     n * c * scalar * row_tables
-        + place_rows
         + n * scalar
         + n * fused_bytes(c, scalar)
         + 8
         + layout.components * scalar
         + chunks * cx.d_count * acc
-        + layout.rows * c * scalar
+        + post_rows * c * scalar
         + cx.d_count * scalar
         + 16
 }

@@ -21,7 +21,7 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
             dpost: [[[0.0; NUM_CLASSES]; NUM_PLACES]; NUM_DECOMPOSITIONS],
         }
     } else {
-        TokenStream::new()
+        quote!(post: [[0.0; NUM_CLASSES]; NUM_ROWS],)
     };
     let chunks = int(tpls.iter().map(value_chunks).sum::<usize>().max(1));
     quote! {
@@ -40,7 +40,6 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
                     shift: 0,
                     val: [0.0; NUM_COMPONENTS],
                     parts: [[#rt::Acc::ZERO; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
-                    post: [[0.0; NUM_CLASSES]; NUM_ROWS],
                     w: [0.0; NUM_DECOMPOSITIONS],
                     lhat: 0.0,
                     ok: false,
@@ -74,11 +73,15 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
             /// Every row of `ev` scaled to a largest entry of 1 (what the gathers read).
             scaled: Evidence,
             /// Every place's local posterior row per decomposition, `dpost[d][place]`
-            /// (copies of `post`'s rows: `marginals` then mixes contiguous memory).
+            /// (where updates store the components' posteriors: `marginals` then mixes
+            /// contiguous memory).
             dpost: [[[#t; NUM_CLASSES]; NUM_PLACES]; NUM_DECOMPOSITIONS],
         }
     } else {
-        TokenStream::new()
+        quote! {
+            /// Every component's local posterior rows (`NUM_ROWS`, see `PLACE_SLOTS`).
+            post: [[#t; NUM_CLASSES]; NUM_ROWS],
+        }
     };
     quote! {
         /// Streaming inference for a robot that gets evidence one place at a time: the
@@ -111,7 +114,6 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
             shift: i64,
             val: [#t; NUM_COMPONENTS],
             parts: [[#rt::Acc<#t>; NUM_DECOMPOSITIONS]; NUM_VALUE_CHUNKS],
-            post: [[#t; NUM_CLASSES]; NUM_ROWS],
             w: [#t; NUM_DECOMPOSITIONS],
             lhat: #t,
             ok: bool,
@@ -162,8 +164,8 @@ pub(super) fn cached_marginals(tpls: &[Tpl], post: &TokenStream, w: &TokenStream
         .collect()
 }
 
-/// What the cache methods do with the rows only SIMD hosts keep (`table`): the scaled
-/// evidence rows and the posterior rows per decomposition (see [`state_type`]).
+/// What the cache methods do with the scaled evidence rows only SIMD hosts keep
+/// (`table`, see [`state_type`]).
 struct HostTables {
     /// The gathers' source of scaled rows (`None` without the table).
     source: TokenStream,
@@ -171,8 +173,6 @@ struct HostTables {
     fresh_table: TokenStream,
     /// Storing `row` for `place` into the scaled rows.
     store_table: TokenStream,
-    /// Every place's posterior rows per decomposition, from the component cache.
-    spread_all: TokenStream,
 }
 
 /// [`HostTables`]: code for SIMD hosts (`table`), nothing otherwise.
@@ -183,7 +183,6 @@ fn host_tables(table: bool) -> HostTables {
             source: quote!(None),
             fresh_table: TokenStream::new(),
             store_table: TokenStream::new(),
-            spread_all: TokenStream::new(),
         };
     }
     HostTables {
@@ -194,7 +193,6 @@ fn host_tables(table: bool) -> HostTables {
                 *s = #rt::scale_row(&row);
             }
         },
-        spread_all: quote!(#rt::spread_all(&self.post, &PLACE_SLOTS, &mut self.dpost);),
     }
 }
 
@@ -206,7 +204,6 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
         source,
         fresh_table,
         store_table,
-        spread_all,
     } = host_tables(table);
     let (comp_t, _) = component_int(tpls.iter().map(|tp| tp.members.len()).sum());
     let mut eval_fns = TokenStream::new();
@@ -221,17 +218,18 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
         let (first_component, first_row) = (int(tp.first_component), int(tp.first_row));
         let groups = int(tp.groups());
         let fc = format_ident!("{f}_components");
-        let spread = if table {
-            quote!(if let Some(p) = self.post.get(#first_row..) { #rt::spread_components(&#stat, comps, #first_component, p, &mut self.dpost); })
+        // Where the components' local posteriors go: the SIMD host's rows per
+        // decomposition, or this template's rows of the component cache.
+        let rows = if table {
+            quote!(Some(&mut self.dpost))
         } else {
-            TokenStream::new()
+            quote!(self.post.get_mut(#first_row..))
         };
         eval_fns.extend(quote! {
-            #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_group(&#stat, &self.ev, #source, g, v, p); } }
+            #[inline(never)] fn #f(&mut self, g: usize) { if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), #rows) { #rt::eval_group(&#stat, &self.ev, #source, g, v, p); } }
             #[inline(never)] fn #fc(&mut self, comps: &[#comp_t]) {
-                if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), self.post.get_mut(#first_row..)) { #rt::eval_components(&#stat, &self.ev, #source, comps, #first_component, v, p); }
+                if let (Some(v), Some(p)) = (self.val.get_mut(#first_component..), #rows) { #rt::eval_components(&#stat, &self.ev, #source, comps, #first_component, v, p); }
                 if let (Some(v), Some(ps)) = (self.val.get(#first_component..), self.parts.get_mut(#chunk0..#chunk_end)) { #rt::update_chunks(&#stat, comps, #first_component, v, ps); }
-                #spread
             }
         });
         update.extend(quote!(self.#fc(comps);));
@@ -265,7 +263,6 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
         /// Evaluates every component (after `set_all`, or on the first use of a new state).
         fn refresh(&mut self) {
             #refresh
-            #spread_all
             self.remix();
             self.ready = true;
         }

@@ -8,16 +8,23 @@ use super::{Acc, Tpl, accumulate, class_lanes, gather, weight};
 
 /// Streaming state and one-pass marginals: re-evaluates group `g` of a template on
 /// evidence `e` (`table`: see [`gather`](crate::__private::gather)) and stores each real component's value into `val` (indexed by
-/// component within the template) and its local posteriors into `post` (rows
-/// `u·NV ..`).
+/// component within the template) and its local posteriors into `post` (see
+/// [`PostRows`]).
 #[inline(never)]
-pub fn eval_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+pub fn eval_group<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    P: PostRows<W::Scalar, C> + ?Sized,
+>(
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
     table: Option<&[[W::Scalar; C]; N]>,
     g: usize,
     val: &mut [W::Scalar],
-    post: &mut [[W::Scalar; C]],
+    post: &mut P,
 ) {
     let Some(p) = t.places.get(g) else {
         return;
@@ -43,6 +50,7 @@ pub fn eval_components<
     const C: usize,
     const N: usize,
     I: Copy + Into<u64>,
+    P: PostRows<W::Scalar, C> + ?Sized,
 >(
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
@@ -50,7 +58,7 @@ pub fn eval_components<
     comps: &[I],
     first: usize,
     val: &mut [W::Scalar],
-    post: &mut [[W::Scalar; C]],
+    post: &mut P,
 ) {
     let mut batch = [[0u16; NV]; L];
     let mut ks = [0usize; L];
@@ -89,17 +97,55 @@ fn local_component<W: Lanes, const L: usize, const NV: usize, const C: usize, I:
     (k < t.decs.len()).then_some(k)
 }
 
+/// Where [`eval_group`] and [`eval_components`] store a component's local posterior
+/// rows: the template's component cache (a slice of rows, component `k`'s variable
+/// `v` at row `k·NV + v`), or on SIMD hosts the streaming state's place-major rows per
+/// decomposition (`[[[T; C]; N]; D]`, row `[d][place]` for every decomposition `d`
+/// containing the component).
+pub trait PostRows<T, const C: usize> {
+    /// Stores `row`, the local posteriors of variable `v` of the template's component
+    /// `k` (`NV` variables per component), at place `q`, in decompositions `mask`.
+    fn put<const NV: usize>(&mut self, k: usize, v: usize, q: u16, mask: u64, row: &[T; C]);
+}
+
+impl<T: Copy, const C: usize> PostRows<T, C> for [[T; C]] {
+    #[inline(always)]
+    fn put<const NV: usize>(&mut self, k: usize, v: usize, _q: u16, _mask: u64, row: &[T; C]) {
+        if let Some(o) = self.get_mut(k * NV + v) {
+            *o = *row;
+        }
+    }
+}
+
+impl<T: Copy, const C: usize, const N: usize, const D: usize> PostRows<T, C> for [[[T; C]; N]; D] {
+    #[inline(always)]
+    fn put<const NV: usize>(&mut self, _k: usize, _v: usize, q: u16, mask: u64, row: &[T; C]) {
+        for (d, rows) in self.iter_mut().enumerate() {
+            if let (true, Some(o)) = ((mask >> d) & 1 == 1, rows.get_mut(usize::from(q))) {
+                *o = *row;
+            }
+        }
+    }
+}
+
 /// Evaluates the lane group `p` and stores lane `l`'s value and local posteriors as
 /// those of component `comps[l]` (lanes past `comps.len()` are dropped).
 #[inline(always)]
-fn store_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+fn store_group<
+    W: Lanes,
+    const L: usize,
+    const NV: usize,
+    const C: usize,
+    const N: usize,
+    P: PostRows<W::Scalar, C> + ?Sized,
+>(
     t: &Tpl<W, L, NV, C>,
     e: &[[W::Scalar; C]; N],
     table: Option<&[[W::Scalar; C]; N]>,
     p: &[[u16; NV]; L],
     comps: &[usize],
     val: &mut [W::Scalar],
-    post: &mut [[W::Scalar; C]],
+    post: &mut P,
 ) {
     // Not through `post_group`: its returned arrays cost a 1.6 KB copy per update.
     let x = gather::<W, L, NV, C, N>(e, None, table, p);
@@ -112,12 +158,13 @@ fn store_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const 
     }
     for (i, pv) in pw.iter().enumerate() {
         let pv = class_lanes::<W, L, C>(pv);
-        for (l, &k) in comps.iter().enumerate() {
-            if let Some(o) = post.get_mut(k * NV + i) {
-                for (oc, pc) in o.iter_mut().zip(&pv) {
-                    *oc = pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
-                }
+        for (l, (&k, pl)) in comps.iter().zip(p).enumerate() {
+            let mut row = [W::Scalar::ZERO; C];
+            for (oc, pc) in row.iter_mut().zip(&pv) {
+                *oc = pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
             }
+            let (q, mask) = (pl.get(i).copied(), t.decs.get(k).copied());
+            post.put::<NV>(k, i, q.unwrap_or(u16::MAX), mask.unwrap_or(0), &row);
         }
     }
 }
@@ -324,67 +371,6 @@ pub fn mix_rows<T: Real, const C: usize, const D: usize>(
     *out = acc;
 }
 
-/// Streaming state on SIMD hosts: copies the cached local posteriors of this
-/// template's components among `comps` (global indices, this template's from
-/// `first`; `post` holds its rows `k·NV ..`) into the place-major rows of every
-/// decomposition containing them, `dpost[d][place]` (what [`mix_decompositions`]
-/// reads).
-#[inline(never)]
-pub fn spread_components<
-    W: Lanes,
-    const L: usize,
-    const NV: usize,
-    const C: usize,
-    const N: usize,
-    const D: usize,
-    I: Copy + Into<u64>,
->(
-    t: &Tpl<W, L, NV, C>,
-    comps: &[I],
-    first: usize,
-    post: &[[W::Scalar; C]],
-    dpost: &mut [[[W::Scalar; C]; N]; D],
-) {
-    for &c in comps {
-        let Some(k) = local_component(t, c, first) else {
-            continue;
-        };
-        let (Some(pl), Some(&mask)) = (
-            t.places.get(k / L).and_then(|g| g.get(k % L)),
-            t.decs.get(k),
-        ) else {
-            continue;
-        };
-        for (v, &q) in pl.iter().enumerate() {
-            let Some(&row) = post.get(k * NV + v) else {
-                continue;
-            };
-            for (d, rows) in dpost.iter_mut().enumerate() {
-                if let (true, Some(o)) = ((mask >> d) & 1 == 1, rows.get_mut(usize::from(q))) {
-                    *o = row;
-                }
-            }
-        }
-    }
-}
-
-/// Streaming state on SIMD hosts: every place's rows per decomposition,
-/// `dpost[d][q] = post[slots[q][d]]` (a row of zeros where a slot is out of range).
-#[inline(never)]
-pub fn spread_all<T: Real, const C: usize, const D: usize, const N: usize>(
-    post: &[[T; C]],
-    slots: &[[u32; D]; N],
-    dpost: &mut [[[T; C]; N]; D],
-) {
-    for (q, s) in slots.iter().enumerate() {
-        for (rows, &slot) in dpost.iter_mut().zip(s) {
-            if let Some(o) = rows.get_mut(q) {
-                *o = post.get(slot as usize).copied().unwrap_or([T::ZERO; C]);
-            }
-        }
-    }
-}
-
 /// Every place's marginal from the place-major rows of the decompositions:
 /// `out = Σ_d w_d · dpost[d]`, `L` entries per vector multiply-add over contiguous
 /// memory (no row indices; on a SIMD host 1.4× faster than [`mix_places`]'s rows
@@ -548,9 +534,10 @@ mod tests {
         (t, [[0, 0, 9], [1, 1, 6], [2, 5, 7], [3, 4, 8]])
     }
 
-    /// The place-major rows per decomposition, built whole or updated per component,
-    /// give the same marginals as mixing the component cache's rows through the slots,
-    /// in lanes of eight (with a scalar tail) and one scalar at a time.
+    /// Rows stored through [`PostRows`] into the component cache land at `k·NV + v`,
+    /// and into the place-major rows of every decomposition of the component; mixing
+    /// the latter gives the marginals of mixing the cache's rows through the slots, in
+    /// lanes of eight (with a scalar tail) and one scalar at a time.
     #[test]
     fn decomposition_rows_mix_like_the_component_rows() {
         let (t, slots) = pairs_template();
@@ -561,8 +548,15 @@ mod tests {
             }
         }
         let w = [0.5f32, 0.3, 0.2];
-        let mut dpost = [[[0f32; 3]; 4]; 3];
-        spread_all(&post, &slots, &mut dpost);
+        let store =
+            |post: &[[f32; 3]; 10], cache: &mut [[f32; 3]], dpost: &mut [[[f32; 3]; 4]; 3]| {
+                for (k, (g, &mask)) in t.places.iter().zip(t.decs).enumerate() {
+                    for (v, &q) in g[0].iter().enumerate() {
+                        cache.put::<2>(k, v, q, mask, &post[k * 2 + v]);
+                        dpost.put::<2>(k, v, q, mask, &post[k * 2 + v]);
+                    }
+                }
+            };
         let check = |dpost: &[[[f32; 3]; 4]; 3], post: &[[f32; 3]]| {
             let mut want = [[0f32; 3]; 4];
             mix_places(post, &slots, &w, &mut want);
@@ -584,21 +578,26 @@ mod tests {
                 }
             }
         };
+        let mut cache = [[0f32; 3]; 10];
+        let mut dpost = [[[0f32; 3]; 4]; 3];
+        store(&post, &mut cache, &mut dpost);
+        assert_eq!(cache, post);
         check(&dpost, &post);
-        // Component 3 (rows 6 and 7, decomposition 2) changes: spreading it alone (as
-        // global component 13, this template's components being 10 ..; 2 and 40 are
-        // another template's and skipped) matches spreading every row again.
-        post[6] = [0.9, 0.05, 0.05];
-        post[7] = [0.2, 0.7, 0.1];
-        let mut stale = dpost;
-        spread_components(&t, &[2u8, 13, 40], 10, &post, &mut stale);
-        spread_all(&post, &slots, &mut dpost);
-        assert_eq!(stale, dpost);
-        check(&dpost, &post);
-        // The shared component 0 is written into both of its decompositions.
+        // The shared component 0 is written into both of its decompositions, and the
+        // others' rows stay.
         post[0] = [0.3, 0.3, 0.4];
-        spread_components(&t, &[0u8], 0, &post, &mut stale);
-        assert_eq!((stale[0][0], stale[1][0]), (post[0], post[0]));
-        assert_eq!(stale[2][0], post[9]);
+        dpost.put::<2>(0, 0, 0, 0b011, &post[0]);
+        cache.put::<2>(0, 0, 0, 0b011, &post[0]);
+        assert_eq!(cache, post);
+        assert_eq!(
+            (dpost[0][0], dpost[1][0], dpost[2][0]),
+            (post[0], post[0], post[9])
+        );
+        check(&dpost, &post);
+        // Places out of range are skipped.
+        dpost.put::<2>(0, 0, 7, 0b111, &[9.0; 3]);
+        cache.put::<2>(5, 0, 0, 0, &[9.0; 3]);
+        assert_eq!(cache, post);
+        check(&dpost, &post);
     }
 }
