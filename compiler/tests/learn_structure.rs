@@ -199,6 +199,29 @@ fn most_images_keeps_the_largest_orbit_for_every_seed() {
     }
 }
 
+/// Ties keep the first split drawn: under the identity alone every candidate has one
+/// image, so the fewest-images and most-images choices keep the same (first) draw of
+/// every region and build the same SPN, for every seed. The choice matters only
+/// between splits whose orbits differ in size.
+#[test]
+fn tied_candidates_keep_the_first_draw() {
+    let identity = [vec![0, 1, 2, 3, 4]];
+    let params = |split_choice| DenseParams {
+        split_choice,
+        ..DenseParams::default()
+    };
+    for seed in 0..6 {
+        let fewest =
+            symmetric_dense_structure(5, 3, &params(SplitChoice::FewestImages), &identity, seed)
+                .unwrap();
+        let most =
+            symmetric_dense_structure(5, 3, &params(SplitChoice::MostImages), &identity, seed)
+                .unwrap();
+        check_valid(&fewest);
+        assert_eq!(fewest, most, "seed {seed}");
+    }
+}
+
 /// A symmetry group whose permutation is not one of the variables is refused with its
 /// position: a variable out of range, a repeated one, a wrong length.
 #[test]

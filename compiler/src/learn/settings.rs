@@ -182,7 +182,8 @@ pub struct DenseParams {
 
 /// How [`symmetric_dense_structure`](super::structure::symmetric_dense_structure) picks a region's split among
 /// [`SPLIT_CANDIDATES`](super::structure::SPLIT_CANDIDATES) random draws before closing it under the template's
-/// automorphisms.
+/// automorphisms. Among draws with equally many images the first one drawn is kept
+/// (so under the identity alone both choices keep every region's first draw).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SplitChoice {
