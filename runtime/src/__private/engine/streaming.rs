@@ -103,26 +103,58 @@ fn local_component<W: Lanes, const L: usize, const NV: usize, const C: usize, I:
 /// decomposition (`[[[T; C]; N]; D]`, row `[d][place]` for every decomposition `d`
 /// containing the component).
 pub trait PostRows<T, const C: usize> {
-    /// Stores `row`, the local posteriors of variable `v` of the template's component
-    /// `k` (`NV` variables per component), at place `q`, in decompositions `mask`.
-    fn put<const NV: usize>(&mut self, k: usize, v: usize, q: u16, mask: u64, row: &[T; C]);
+    /// Stores the local posteriors of variable `v` of the template's component `k`
+    /// (`NV` variables per component), at place `q`, in decompositions `mask`: `fill`
+    /// writes the row in place (once; further copies are taken from it).
+    fn put_with<const NV: usize>(
+        &mut self,
+        k: usize,
+        v: usize,
+        q: u16,
+        mask: u64,
+        fill: impl FnOnce(&mut [T; C]),
+    );
 }
 
 impl<T: Copy, const C: usize> PostRows<T, C> for [[T; C]] {
     #[inline(always)]
-    fn put<const NV: usize>(&mut self, k: usize, v: usize, _q: u16, _mask: u64, row: &[T; C]) {
+    fn put_with<const NV: usize>(
+        &mut self,
+        k: usize,
+        v: usize,
+        _q: u16,
+        _mask: u64,
+        fill: impl FnOnce(&mut [T; C]),
+    ) {
         if let Some(o) = self.get_mut(k * NV + v) {
-            *o = *row;
+            fill(o);
         }
     }
 }
 
 impl<T: Copy, const C: usize, const N: usize, const D: usize> PostRows<T, C> for [[[T; C]; N]; D] {
     #[inline(always)]
-    fn put<const NV: usize>(&mut self, _k: usize, _v: usize, q: u16, mask: u64, row: &[T; C]) {
+    fn put_with<const NV: usize>(
+        &mut self,
+        _k: usize,
+        _v: usize,
+        q: u16,
+        mask: u64,
+        fill: impl FnOnce(&mut [T; C]),
+    ) {
+        let mut first: Option<[T; C]> = None;
+        let mut fill = Some(fill);
         for (d, rows) in self.iter_mut().enumerate() {
-            if let (true, Some(o)) = ((mask >> d) & 1 == 1, rows.get_mut(usize::from(q))) {
-                *o = *row;
+            let (true, Some(o)) = ((mask >> d) & 1 == 1, rows.get_mut(usize::from(q))) else {
+                continue;
+            };
+            match (first, fill.take()) {
+                (Some(row), _) => *o = row,
+                (None, Some(f)) => {
+                    f(o);
+                    first = Some(*o);
+                }
+                (None, None) => {}
             }
         }
     }
@@ -159,12 +191,12 @@ fn store_group<
     for (i, pv) in pw.iter().enumerate() {
         let pv = class_lanes::<W, L, C>(pv);
         for (l, (&k, pl)) in comps.iter().zip(p).enumerate() {
-            let mut row = [W::Scalar::ZERO; C];
-            for (oc, pc) in row.iter_mut().zip(&pv) {
-                *oc = pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
-            }
             let (q, mask) = (pl.get(i).copied(), t.decs.get(k).copied());
-            post.put::<NV>(k, i, q.unwrap_or(u16::MAX), mask.unwrap_or(0), &row);
+            post.put_with::<NV>(k, i, q.unwrap_or(u16::MAX), mask.unwrap_or(0), |o| {
+                for (oc, pc) in o.iter_mut().zip(&pv) {
+                    *oc = pc.get(l).copied().unwrap_or(W::Scalar::ZERO);
+                }
+            });
         }
     }
 }
@@ -552,8 +584,9 @@ mod tests {
             |post: &[[f32; 3]; 10], cache: &mut [[f32; 3]], dpost: &mut [[[f32; 3]; 4]; 3]| {
                 for (k, (g, &mask)) in t.places.iter().zip(t.decs).enumerate() {
                     for (v, &q) in g[0].iter().enumerate() {
-                        cache.put::<2>(k, v, q, mask, &post[k * 2 + v]);
-                        dpost.put::<2>(k, v, q, mask, &post[k * 2 + v]);
+                        let row = post[k * 2 + v];
+                        cache.put_with::<2>(k, v, q, mask, |o| *o = row);
+                        dpost.put_with::<2>(k, v, q, mask, |o| *o = row);
                     }
                 }
             };
@@ -586,8 +619,9 @@ mod tests {
         // The shared component 0 is written into both of its decompositions, and the
         // others' rows stay.
         post[0] = [0.3, 0.3, 0.4];
-        dpost.put::<2>(0, 0, 0, 0b011, &post[0]);
-        cache.put::<2>(0, 0, 0, 0b011, &post[0]);
+        let row = post[0];
+        dpost.put_with::<2>(0, 0, 0, 0b011, |o| *o = row);
+        cache.put_with::<2>(0, 0, 0, 0b011, |o| *o = row);
         assert_eq!(cache, post);
         assert_eq!(
             (dpost[0][0], dpost[1][0], dpost[2][0]),
@@ -595,8 +629,8 @@ mod tests {
         );
         check(&dpost, &post);
         // Places out of range are skipped.
-        dpost.put::<2>(0, 0, 7, 0b111, &[9.0; 3]);
-        cache.put::<2>(5, 0, 0, 0, &[9.0; 3]);
+        dpost.put_with::<2>(0, 0, 7, 0b111, |o| *o = [9.0; 3]);
+        cache.put_with::<2>(5, 0, 0, 0, |o| *o = [9.0; 3]);
         assert_eq!(cache, post);
         check(&dpost, &post);
     }
