@@ -683,6 +683,34 @@ fn factor_messages_log(
 mod tests {
     use super::*;
 
+    /// An impossible factor (every entry 0) sends messages of zeros, `-inf` in the log
+    /// path, never NaN: no normalisation of an all-`-inf` message (`-inf - -inf`).
+    #[test]
+    fn an_impossible_factor_sends_zero_messages_not_nan() {
+        let cards = vec![2, 3];
+        let fd = FactorData {
+            vars: vec![0, 1],
+            cards: cards.clone(),
+            lin: vec![0.0; 6].into(),
+            log: vec![f64::NEG_INFINITY; 6].into(),
+            wide: false,
+            first_edge: 0,
+        };
+        let mut log_in: [Vec<f64>; MAX_ARITY] = Default::default();
+        log_in[0] = vec![0.0, -1.0];
+        log_in[1] = vec![-0.5, 0.0, -2.0];
+        let mut out: [Vec<f64>; MAX_ARITY] = Default::default();
+        factor_messages_log(&fd, &log_in, &mut out);
+        for (k, &c) in cards.iter().enumerate() {
+            assert_eq!(out[k].len(), c);
+            assert!(
+                out[k].iter().all(|&v| v == f64::NEG_INFINITY),
+                "target {k}: {:?}",
+                out[k]
+            );
+        }
+    }
+
     /// The log path gives the linear path's messages, normalised (`log Σ exp = 0`), for
     /// factors of every arity.
     #[test]
