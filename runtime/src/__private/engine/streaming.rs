@@ -390,17 +390,26 @@ pub fn mix_rows<T: Real, const C: usize, const D: usize>(
     w: &[T; D],
     out: &mut [T; C],
 ) {
+    *out = weighted_sum(w, |d| post.get(*slots.get(d)? as usize));
+}
+
+/// `Σ_d w_d · row(d)`, in order of `d`; a decomposition without a row (`None`) adds
+/// nothing.
+#[inline(always)]
+fn weighted_sum<'a, T: Real + 'a, const C: usize, const D: usize>(
+    w: &[T; D],
+    row: impl Fn(usize) -> Option<&'a [T; C]>,
+) -> [T; C] {
     // Summed in a local and stored once: a store into `out` after each row made the
     // host's mix of all places 1.45× slower (1.03 against 0.71 µs at 230 places).
     let mut acc = [T::ZERO; C];
-    for (&s, &wd) in slots.iter().zip(w) {
-        if let Some(r) = post.get(s as usize) {
-            for (o, &v) in acc.iter_mut().zip(r) {
-                *o += wd * v;
-            }
+    for (d, &wd) in w.iter().enumerate() {
+        let Some(r) = row(d) else { continue };
+        for (o, &v) in acc.iter_mut().zip(r) {
+            *o += wd * v;
         }
     }
-    *out = acc;
+    acc
 }
 
 /// Every place's marginal from the place-major rows of the decompositions:
@@ -450,15 +459,7 @@ pub fn mix_place<T: Real, const C: usize, const N: usize, const D: usize>(
     place: usize,
     out: &mut [T; C],
 ) {
-    let mut acc = [T::ZERO; C];
-    for (rows, &wd) in dpost.iter().zip(w) {
-        if let Some(r) = rows.get(place) {
-            for (o, &v) in acc.iter_mut().zip(r) {
-                *o += wd * v;
-            }
-        }
-    }
-    *out = acc;
+    *out = weighted_sum(w, |d| dpost.get(d)?.get(place));
 }
 
 #[cfg(test)]
