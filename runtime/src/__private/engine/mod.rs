@@ -204,7 +204,8 @@ pub fn value_pass<
     acc: &mut [Acc<W::Scalar>; D],
 ) {
     for (g, p) in t.places.iter().enumerate() {
-        let x = gather::<W, L, NV, C, N>(e, Some(labels), table, p);
+        let mut x = [[W::ZERO; C]; NV];
+        gather::<W, L, NV, C, N>(e, Some(labels), table, p, &mut x);
         let v = if max { (t.max)(&x) } else { (t.fwd)(&x) };
         let masks = t.decs.get(g * L..).unwrap_or(&[]);
         for (&mask, &vl) in masks.iter().zip(&v.to_lanes::<L>()) {
@@ -259,7 +260,8 @@ fn post_group<W: Lanes, const L: usize, const NV: usize, const C: usize, const N
     table: Option<&[[W::Scalar; C]; N]>,
     p: &[[u16; NV]; L],
 ) -> ([W::Scalar; L], [[W; C]; NV]) {
-    let x = gather::<W, L, NV, C, N>(e, None, table, p);
+    let mut x = [[W::ZERO; C]; NV];
+    gather::<W, L, NV, C, N>(e, None, table, p, &mut x);
     let mut post = [[W::ZERO; C]; NV];
     let v = (t.post)(&x, &mut post);
     (v.to_lanes::<L>(), post)
@@ -390,7 +392,8 @@ fn mpe_batch<W: Lanes, const L: usize, const NV: usize, const C: usize, const N:
     n: usize,
     labels: &mut [u16; N],
 ) {
-    let x = gather::<W, L, NV, C, N>(e, None, table, batch);
+    let mut x = [[W::ZERO; C]; NV];
+    gather::<W, L, NV, C, N>(e, None, table, batch, &mut x);
     let mut lab = [[0u16; NV]; L];
     (t.mpe)(&x, &mut lab);
     for (lab, pl) in lab.iter().zip(batch).take(n) {

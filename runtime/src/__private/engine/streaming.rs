@@ -175,7 +175,8 @@ fn store_group<
     post: &mut P,
 ) {
     // Not through `post_group`: its returned arrays cost a 1.6 KB copy per update.
-    let x = gather::<W, L, NV, C, N>(e, None, table, p);
+    let mut x = [[W::ZERO; C]; NV];
+    gather::<W, L, NV, C, N>(e, None, table, p, &mut x);
     let mut pw = [[W::ZERO; C]; NV];
     let v = (t.post)(&x, &mut pw).to_lanes::<L>();
     for (&vl, &k) in v.iter().zip(comps) {
