@@ -465,15 +465,6 @@ mod tests {
     /// A one-variable template of 40 components (three chunks, the last partial) in
     /// three decompositions, some shared; its functions are never called here.
     fn chunked_template() -> Tpl<f32, 1, 1, 2> {
-        fn unused(_: &[[f32; 2]; 1]) -> f32 {
-            0.0
-        }
-        fn unused_post(_: &[[f32; 2]; 1], _: &mut [[f32; 2]; 1]) -> f32 {
-            0.0
-        }
-        fn unused_mpe(_: &[[f32; 2]; 1], _: &mut [[u16; 1]; 1]) -> f32 {
-            0.0
-        }
         static PLACES: [[[u16; 1]; 1]; 40] = [[[0]]; 40];
         static DECS: [u64; 40] = {
             let mut d = [0u64; 40];
@@ -484,14 +475,35 @@ mod tests {
             }
             d
         };
+        stub_template(&PLACES, &DECS)
+    }
+
+    /// A one-lane template over `places` and `decs` whose SPN functions are stubs
+    /// (the tests using it never call them).
+    fn stub_template<const NV: usize, const C: usize>(
+        places: &'static [[[u16; NV]; 1]],
+        decs: &'static [u64],
+    ) -> Tpl<f32, 1, NV, C> {
+        fn value<const NV: usize, const C: usize>(_: &[[f32; C]; NV]) -> f32 {
+            0.0
+        }
+        fn post<const NV: usize, const C: usize>(
+            _: &[[f32; C]; NV],
+            _: &mut [[f32; C]; NV],
+        ) -> f32 {
+            0.0
+        }
+        fn mpe<const NV: usize, const C: usize>(_: &[[f32; C]; NV], _: &mut [[u16; NV]; 1]) -> f32 {
+            0.0
+        }
         Tpl {
-            places: &PLACES,
-            decs: &DECS,
+            places,
+            decs,
             log: false,
-            fwd: unused,
-            post: unused_post,
-            max: unused,
-            mpe: unused_mpe,
+            fwd: value::<NV, C>,
+            post: post::<NV, C>,
+            max: value::<NV, C>,
+            mpe: mpe::<NV, C>,
         }
     }
 
@@ -540,26 +552,9 @@ mod tests {
     /// is the row of place `q`'s component in decomposition `d`.
     #[allow(clippy::type_complexity)]
     fn pairs_template() -> (Tpl<f32, 1, 2, 3>, [[u32; 3]; 4]) {
-        fn unused(_: &[[f32; 3]; 2]) -> f32 {
-            0.0
-        }
-        fn unused_post(_: &[[f32; 3]; 2], _: &mut [[f32; 3]; 2]) -> f32 {
-            0.0
-        }
-        fn unused_mpe(_: &[[f32; 3]; 2], _: &mut [[u16; 2]; 1]) -> f32 {
-            0.0
-        }
         static PLACES: [[[u16; 2]; 1]; 5] = [[[0, 1]], [[2, 3]], [[3, 2]], [[1, 2]], [[3, 0]]];
         static DECS: [u64; 5] = [0b011, 0b001, 0b010, 0b100, 0b100];
-        let t = Tpl {
-            places: &PLACES,
-            decs: &DECS,
-            log: false,
-            fwd: unused,
-            post: unused_post,
-            max: unused,
-            mpe: unused_mpe,
-        };
+        let t = stub_template(&PLACES, &DECS);
         (t, [[0, 0, 9], [1, 1, 6], [2, 5, 7], [3, 4, 8]])
     }
 
