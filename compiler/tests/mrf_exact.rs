@@ -52,6 +52,24 @@ fn variable_elimination_matches_enumeration() {
     }
 }
 
+/// `ln Z` of a one-variable graph (`Z` = the sum of its factors' products) and of
+/// a variable in no factor (`Z` = its cardinality): the first elimination run is
+/// the one that sets `ln Z`, and with one variable it is the only run.
+#[test]
+fn variable_elimination_gives_ln_z_of_one_variable() {
+    let mut fg = FactorGraph::new(vec![3]).unwrap();
+    fg.add_factor(vec![0], vec![1.0, 3.0, 0.5]).unwrap();
+    fg.add_factor(vec![0], vec![2.0, 1.0, 4.0]).unwrap();
+    let v = variable_elimination(&fg, 1 << 10).unwrap();
+    assert!((v.log_z - 7f64.ln()).abs() < 1e-12, "ln Z {}", v.log_z);
+    for (m, want) in v.marginals[0].iter().zip([2.0 / 7.0, 3.0 / 7.0, 2.0 / 7.0]) {
+        assert!((m - want).abs() < 1e-12, "marginal {m} vs {want}");
+    }
+    let free = FactorGraph::new(vec![4]).unwrap();
+    let v = variable_elimination(&free, 1 << 10).unwrap();
+    assert!((v.log_z - 4f64.ln()).abs() < 1e-12, "ln Z {}", v.log_z);
+}
+
 /// Variable elimination rescales every intermediate table (its documented guard
 /// against underflow): a chain of 60 variables whose pairwise factors are all
 /// scaled by `1e-10` has `Z` near `1e-590`, far below `f64`'s range, yet its `ln Z`
