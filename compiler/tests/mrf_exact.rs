@@ -8,8 +8,8 @@ use graphspn_compiler::experiments::evidence::{NoiseLevel, simulate_map_evidence
 use graphspn_compiler::experiments::models::temper_rows;
 use graphspn_compiler::map::{TopoMap, cold};
 use graphspn_compiler::mrf::{
-    BpOptions, CooccurrenceParams, FactorGraph, Mrf2, Mrf3, MrfModel, Normalisation, Schedule,
-    exact_inference, loopy_bp, variable_elimination,
+    BpOptions, CooccurrenceParams, FactorGraph, Mrf2, Mrf3, MrfError, MrfModel, Normalisation,
+    Schedule, exact_inference, loopy_bp, variable_elimination,
 };
 use rand::{Rng, SeedableRng};
 
@@ -68,6 +68,36 @@ fn variable_elimination_gives_ln_z_of_one_variable() {
     let free = FactorGraph::new(vec![4]).unwrap();
     let v = variable_elimination(&free, 1 << 10).unwrap();
     assert!((v.log_z - 4f64.ln()).abs() < 1e-12, "ln Z {}", v.log_z);
+}
+
+/// A graph whose every assignment scores 0 has no distribution: variable
+/// elimination (an all-zero table is left as it is, not divided by its maximum 0) and
+/// enumeration both report it as inconsistent, on one variable and on a chain whose
+/// contradiction sits in a summed-out table.
+#[test]
+fn variable_elimination_reports_a_contradiction_not_nan() {
+    let mut one = FactorGraph::new(vec![2]).unwrap();
+    one.add_factor(vec![0], vec![1.0, 0.0]).unwrap();
+    one.add_factor(vec![0], vec![0.0, 2.0]).unwrap();
+    let mut chain = FactorGraph::new(vec![2, 2, 2]).unwrap();
+    chain
+        .add_factor(vec![0, 1], vec![1.0, 0.0, 0.0, 1.0])
+        .unwrap();
+    chain
+        .add_factor(vec![1, 2], vec![0.5, 0.5, 0.5, 0.5])
+        .unwrap();
+    chain.add_factor(vec![0], vec![0.0, 3.0]).unwrap();
+    chain.add_factor(vec![1], vec![2.0, 0.0]).unwrap();
+    for fg in [&one, &chain] {
+        assert!(matches!(
+            variable_elimination(fg, 1 << 10),
+            Err(MrfError::Inconsistent)
+        ));
+        assert!(matches!(
+            exact_inference(fg, 1 << 10),
+            Err(MrfError::Inconsistent)
+        ));
+    }
 }
 
 /// Variable elimination rescales every intermediate table (its documented guard
