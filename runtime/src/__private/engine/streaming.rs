@@ -116,7 +116,7 @@ pub trait PostRows<T, const C: usize> {
     );
 }
 
-impl<T: Copy, const C: usize> PostRows<T, C> for [[T; C]] {
+impl<T, const C: usize> PostRows<T, C> for [[T; C]] {
     #[inline(always)]
     fn put_with<const NV: usize>(
         &mut self,
@@ -132,7 +132,7 @@ impl<T: Copy, const C: usize> PostRows<T, C> for [[T; C]] {
     }
 }
 
-impl<T: Copy, const C: usize, const N: usize, const D: usize> PostRows<T, C> for [[[T; C]; N]; D] {
+impl<T, const C: usize, const N: usize, const D: usize> PostRows<T, C> for [[[T; C]; N]; D] {
     #[inline(always)]
     fn put_with<const NV: usize>(
         &mut self,
