@@ -279,3 +279,38 @@ fn evidence_and_class_checks_refuse_only_bad_input() {
         "{err}"
     );
 }
+
+/// Without pseudo-counts a class that never occurs has a zero marginal: every
+/// potential involving it is 0 (its whole slice of the joint is 0), never `0/0`, under
+/// every normalisation that divides by marginals.
+#[test]
+fn a_class_never_seen_without_pseudo_counts_gets_zero_potentials() {
+    // Classes A and B only; C (index 2) never occurs.
+    let m = map(&[0, 1, 0, 1], &[(0, 1), (1, 2), (2, 3)]);
+    for normalisation in [
+        Normalisation::Joint,
+        Normalisation::Pmi,
+        Normalisation::Normalised,
+        Normalisation::Conditional,
+    ] {
+        let params = CooccurrenceParams {
+            pseudo_count: 0.0,
+            normalisation,
+            coupling: 1.0,
+        };
+        let p = Mrf2::train(std::slice::from_ref(&m), &params).unwrap();
+        for a in 0..3 {
+            for b in 0..3 {
+                let v = p.potential()[a * 3 + b];
+                if a == 2 || b == 2 {
+                    assert_eq!(v, 0.0, "{normalisation:?}: potential ({a}, {b})");
+                } else {
+                    assert!(
+                        v.is_finite() && v >= 0.0,
+                        "{normalisation:?}: ({a}, {b}) = {v}"
+                    );
+                }
+            }
+        }
+    }
+}
