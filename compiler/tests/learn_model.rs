@@ -204,3 +204,64 @@ fn temperature_tempers_full_tables_exactly_and_one_changes_nothing() {
     let t = model.tempered(0.8).unwrap();
     assert_eq!(t.settings["temperature"], serde_json::json!(0.8));
 }
+
+/// A model file records the temperature only when it is not 1 (so files of untempered
+/// models are unchanged), and reads it back.
+#[test]
+fn settings_record_a_temperature_only_when_it_is_not_one() {
+    let plain = TrainingSettings::default().to_value();
+    assert!(plain.get("temperature").is_none(), "{plain}");
+    let tempered = TrainingSettings {
+        temperature: 0.5,
+        ..TrainingSettings::default()
+    };
+    let v = tempered.to_value();
+    assert_eq!(v["temperature"], serde_json::json!(0.5));
+    assert_eq!(TrainingSettings::from_value(&v).unwrap().temperature, 0.5);
+    assert_eq!(
+        TrainingSettings::from_value(&plain).unwrap().temperature,
+        1.0
+    );
+}
+
+/// Each component of the template in a map's decompositions gives one sample; with
+/// `add_reversed` each sample of more than one place is preceded by its reverse, and
+/// nothing else changes (the same seeds give the same decompositions).
+#[test]
+fn template_samples_add_reverses_only_when_asked() {
+    use graphspn_compiler::learn::template_samples;
+    let mut m = common::codegen::map(
+        7,
+        3,
+        &[(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 6), (1, 4)],
+    );
+    for (i, p) in m.graph.node_weights_mut().enumerate() {
+        p.class = Some((i % 3) as u16);
+    }
+    let plain = TrainingSettings {
+        decompositions_per_map: 4,
+        seed: 7,
+        ..TrainingSettings::default()
+    };
+    let reversed = TrainingSettings {
+        add_reversed: true,
+        ..plain.clone()
+    };
+    let templates = [Template::three(), Template::pair(), Template::singleton()];
+    for (t, template) in templates.iter().enumerate() {
+        let maps = std::slice::from_ref(&m);
+        let once = template_samples(maps, template, t, &plain).unwrap();
+        let twice = template_samples(maps, template, t, &reversed).unwrap();
+        assert!(!once.is_empty(), "{}", template.name);
+        assert!(once.iter().all(|s| s.len() == template.num_nodes));
+        if template.num_nodes == 1 {
+            assert_eq!(twice, once, "a single place has no reverse");
+            continue;
+        }
+        assert_eq!(twice.len(), 2 * once.len(), "{}", template.name);
+        for (pair, s) in twice.chunks(2).zip(&once) {
+            let rev: Vec<_> = s.iter().rev().copied().collect();
+            assert_eq!((&pair[0], &pair[1]), (&rev, s), "{}", template.name);
+        }
+    }
+}

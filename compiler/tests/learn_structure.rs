@@ -155,6 +155,8 @@ fn symmetric_structure_is_closed_and_invariant() {
         assert_eq!(w, 3 * 75 + 6 * 45, "seed {seed}");
         let orbits = edge_orbits(&star, &star_group()).unwrap();
         assert!(!orbits.is_trivial());
+        // Without automorphisms every edge is its own orbit.
+        assert!(edge_orbits(&star, &[]).unwrap().is_trivial());
         // Tied initial weights: value invariant under every automorphism.
         for x in all_labellings(5, 3) {
             let v = value(&star, &x);
@@ -180,6 +182,17 @@ fn symmetric_structure_is_closed_and_invariant() {
     // The plain structure of the Star is not invariant under all leaf swaps.
     let plain = dense_structure(5, 3, &p, 0).unwrap();
     assert!(edge_orbits(&plain, &star_group()).is_err());
+    // A permutation naming a variable past the last is refused, not indexed.
+    use graphspn_compiler::learn::symmetry::SymmetryError;
+    for bad in [vec![1, 0, 2, 3, 5], vec![0, 1, 2, 3], vec![0, 0, 2, 3, 4]] {
+        assert!(
+            matches!(
+                edge_orbits(&s10, &[bad.clone()]),
+                Err(SymmetryError::BadPermutation { .. })
+            ),
+            "{bad:?}"
+        );
+    }
 }
 
 /// `SplitChoice::MostImages` (the default) keeps the candidate with the most images

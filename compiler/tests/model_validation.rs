@@ -133,6 +133,18 @@ fn weights_in_a_model_file_are_relative() {
         assert_eq!(normalise_weights(spn), 0);
     }
     assert_eq!(again.spns, good.spns);
+    // A sum whose weights are all 0 (which the file check refuses) has nothing to
+    // rescale by: it is left as it is, not divided by 0.
+    let mut zero = good.spns[3].clone();
+    let Node::Sum { weights, .. } = &mut zero.nodes[10] else {
+        panic!("node 10 is the singleton's sum")
+    };
+    weights.iter_mut().for_each(|w| *w = 0.0);
+    assert_eq!(normalise_weights(&mut zero), 0);
+    let Node::Sum { weights, .. } = &zero.nodes[10] else {
+        unreachable!()
+    };
+    assert!(weights.iter().all(|&w| w == 0.0), "{weights:?}");
     // And the instance SPN built from rescaled weights validates as normalised.
     m.spns[3].validate().unwrap();
 }
