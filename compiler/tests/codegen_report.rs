@@ -267,3 +267,37 @@ fn tree_factor_tables_follow_the_stack_budget() {
     );
     assert!(src.contains("folded: false"));
 }
+
+/// `count(n)` raises the candidate partitions to at least `3n`: the same module as
+/// asking for `3n` candidates outright (and not the one the default 15 give).
+#[test]
+fn count_raises_the_candidates_to_three_times_the_count() {
+    let v = Vectorisation::Simd;
+    let source = |b: Builder| generate(&b).0;
+    let counted = source(builder("floor.json", v).count(10));
+    assert!(
+        counted == source(builder("floor.json", v).count(10).candidates(30)),
+        "count(10) must score 30 candidates"
+    );
+    assert!(
+        counted != source(builder("floor.json", v).count(10).candidates(15)),
+        "this map and seed must tell 15 candidates from 30"
+    );
+}
+
+/// `write_report_from_any` writes the module at the output path and returns the
+/// same report as rendering it in memory.
+#[test]
+fn write_report_from_any_writes_the_module_it_reports() {
+    let dir = tempfile::tempdir().unwrap();
+    let b = builder("floor.json", Vectorisation::Scalar)
+        .module_name("floor")
+        .out_dir(dir.path());
+    let inputs = b.load_any().expect("demo inputs");
+    let (text, report) = b.report_from_any(&inputs).expect("generation");
+    let (path, written) = b.write_report_from_any(&inputs).expect("write");
+    assert_eq!(path, dir.path().join("floor.rs"));
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), text);
+    assert_eq!(written, report);
+    assert!(report.components > 0);
+}

@@ -5,7 +5,7 @@
 
 use graphspn_compiler::codegen::{CodegenOptions, generate};
 use graphspn_compiler::decompose::{DecompositionParams, decompose_best};
-use graphspn_compiler::learn::{Model, ModelFileError, normalise_weights};
+use graphspn_compiler::learn::{Model, ModelFileError, check_template_spn, normalise_weights};
 use graphspn_compiler::map::TopoMap;
 use graphspn_compiler::spn::Node;
 
@@ -133,6 +133,13 @@ fn weights_in_a_model_file_are_relative() {
         assert_eq!(normalise_weights(spn), 0);
     }
     assert_eq!(again.spns, good.spns);
+    // The count of rescaled sums: the one changed above.
+    let mut relative = good.spns[3].clone();
+    let Node::Sum { weights, .. } = &mut relative.nodes[10] else {
+        unreachable!()
+    };
+    weights[5] *= 3.0;
+    assert_eq!(normalise_weights(&mut relative), 1);
     // A sum whose weights are all 0 (which the file check refuses) has nothing to
     // rescale by: it is left as it is, not divided by 0.
     let mut zero = good.spns[3].clone();
@@ -147,4 +154,21 @@ fn weights_in_a_model_file_are_relative() {
     assert!(weights.iter().all(|&w| w == 0.0), "{weights:?}");
     // And the instance SPN built from rescaled weights validates as normalised.
     m.spns[3].validate().unwrap();
+}
+
+/// The check's error names the SPN node it is about, where there is one.
+#[test]
+fn template_spn_errors_name_their_node() {
+    let good = Model::from_json(&demo_text()).unwrap();
+    let classes = good.classes.len();
+    let mut bad = good.spns[3].clone();
+    if let Node::Sum { children, .. } = &mut bad.nodes[10] {
+        children[9] = 99;
+    }
+    let err = check_template_spn(&bad, 1, classes).unwrap_err();
+    assert_eq!(err.node(), Some(10), "{err}");
+    // A count mismatch is about the whole SPN.
+    let err = check_template_spn(&good.spns[3], 2, classes).unwrap_err();
+    assert_eq!(err.node(), None, "{err}");
+    assert!(check_template_spn(&good.spns[3], 1, classes).is_ok());
 }

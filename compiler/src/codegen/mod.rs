@@ -347,3 +347,24 @@ fn render(
     );
     Ok(header + &prettyplease::unparse(&file))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Vectorisation;
+
+    /// SIMD lane groups where the target has float SIMD the generated code uses
+    /// (x86-64, AArch64); scalar code on microcontrollers and anything unknown.
+    #[test]
+    fn vectorisation_follows_the_target_arch() {
+        for arch in ["x86_64", "aarch64"] {
+            assert_eq!(Vectorisation::for_arch(arch), Vectorisation::Simd, "{arch}");
+        }
+        for arch in ["arm", "riscv32", "riscv64", "xtensa", "avr", "x86", ""] {
+            assert_eq!(
+                Vectorisation::for_arch(arch),
+                Vectorisation::Scalar,
+                "{arch}"
+            );
+        }
+    }
+}
