@@ -265,3 +265,22 @@ fn template_samples_add_reverses_only_when_asked() {
         }
     }
 }
+
+/// The smoothing schedule runs linearly from its start (first epoch) to its end (last
+/// epoch), and stays at the start for a single epoch.
+#[test]
+fn smoothing_runs_linearly_from_start_to_end() {
+    let s = TrainingSettings {
+        epochs: 5,
+        smoothing_start: 30.0,
+        smoothing_end: 10.0,
+        ..TrainingSettings::default()
+    };
+    let schedule: Vec<f64> = (0..6).map(|e| s.smoothing(e)).collect();
+    assert_eq!(schedule, [30.0, 25.0, 20.0, 15.0, 10.0, 10.0]);
+    let one = TrainingSettings {
+        epochs: 1,
+        ..s.clone()
+    };
+    assert_eq!(one.smoothing(0), 30.0);
+}

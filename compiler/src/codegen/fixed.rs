@@ -219,6 +219,40 @@ mod tests {
                 assert!((s - 1.0).abs() < 1e-9, "variable {v}: {s}");
             }
             assert!((o.entry_units(plan.n) - plan.n as f64).abs() < 1e-6);
+            // The value function's bound adds the roundings of its sums (each with a
+            // non-negative sensitivity) to the entries' truncations: above them.
+            let fx = crate::codegen::sparse::SparseCode::fixed("t".into(), &plan);
+            let _ = fx.fwd(&crate::codegen::emit::Lit::new(
+                crate::codegen::Precision::F32,
+            ));
+            assert!(fx.forward_units() > o.entry_units(plan.n) + 1.0);
+            // The posterior function's shifted units count each of its shifted vector
+            // sums (`sum_shr(&v, k)`: under `2^k` units), read off the emitted code.
+            fx.take_shift_units();
+            let (code, _) = fx.post(&crate::codegen::emit::Lit::new(
+                crate::codegen::Precision::F32,
+            ));
+            let units = fx.take_shift_units();
+            let text = code.to_string();
+            let sums: usize = text
+                .split("sum_shr")
+                .skip(1)
+                .map(|call| {
+                    let args = call.split(')').next().unwrap_or("");
+                    let k: u32 = args
+                        .rsplit(',')
+                        .next()
+                        .unwrap_or("")
+                        .trim()
+                        .parse()
+                        .unwrap();
+                    1usize << k
+                })
+                .sum();
+            assert!(
+                sums > 0 && units >= sums,
+                "{units} units, {sums} from vector sums"
+            );
             assert!(
                 o.adjoint[plan.n..]
                     .iter()
