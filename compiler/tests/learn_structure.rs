@@ -187,7 +187,7 @@ fn symmetric_structure_is_closed_and_invariant() {
     for bad in [vec![1, 0, 2, 3, 5], vec![0, 1, 2, 3], vec![0, 0, 2, 3, 4]] {
         assert!(
             matches!(
-                edge_orbits(&s10, &[bad.clone()]),
+                edge_orbits(&s10, std::slice::from_ref(&bad)),
                 Err(SymmetryError::BadPermutation { .. })
             ),
             "{bad:?}"
