@@ -394,3 +394,29 @@ fn state_matches_stateless_and_interpreter() {
         }
     }
 }
+
+/// The generator's report gives the streaming state's size up to alignment padding:
+/// the compiled `State` of the shipped modules is at most 16 bytes smaller.
+#[test]
+fn reported_state_bytes_are_the_compiled_states() {
+    use graphspn_compiler::codegen::{Builder, Vectorisation};
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo");
+    for (map, bytes) in [
+        (
+            "saarbrucken_seq2_night1.json",
+            graphspn_generated::saarbrucken_seq2_night1::STATE_BYTES,
+        ),
+        ("floor.json", graphspn_generated::demo_floor::STATE_BYTES),
+    ] {
+        let b = Builder::new(dir.join("model.json"), dir.join(map))
+            .vectorisation(Vectorisation::Simd)
+            .seed(0)
+            .count(5);
+        let (_, report) = b.report_from(&b.load().unwrap()).unwrap();
+        let r = report.state_bytes;
+        assert!(
+            bytes <= r && r <= bytes + 16,
+            "{map}: reported {r}, compiled {bytes}"
+        );
+    }
+}

@@ -301,3 +301,26 @@ fn write_report_from_any_writes_the_module_it_reports() {
     assert_eq!(written, report);
     assert!(report.components > 0);
 }
+
+/// Tree-mixture generation refuses a map with another number of classes, and forests
+/// of another map, before emitting anything.
+#[test]
+fn tree_generation_refuses_inputs_that_do_not_fit() {
+    use graphspn_compiler::codegen::CodegenError;
+    use graphspn_compiler::map::ClassSet;
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
+    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
+    let floor = TopoMap::load(dir.join("floor.json")).unwrap();
+    let big = TopoMap::load(dir.join("saarbrucken_seq2_night1.json")).unwrap();
+    let options = CodegenOptions::default();
+    let own = SpanningTrees::covering(&floor, model.trees, 0).unwrap();
+    assert!(generate_trees_with_report(&model, &floor, &own, &options).is_ok());
+    let others = SpanningTrees::covering(&big, model.trees, 0).unwrap();
+    assert!(generate_trees_with_report(&model, &floor, &others, &options).is_err());
+    let mut fewer = floor.clone();
+    fewer.classes = ClassSet::new(vec!["a".into(), "b".into()]).unwrap();
+    assert!(matches!(
+        generate_trees_with_report(&model, &fewer, &own, &options),
+        Err(CodegenError::ClassMismatch { .. })
+    ));
+}

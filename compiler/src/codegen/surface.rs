@@ -35,7 +35,8 @@ pub struct CodeReport {
     pub stack_mpe: usize,
     /// Upper bound of the stack of a `State` update plus query (bytes).
     pub stack_state: usize,
-    /// Size of the streaming state (bytes).
+    /// Size of the streaming state (bytes): the tree mixture's exactly, the GraphSPN's
+    /// up to the alignment padding of its fields (at most 16 bytes over).
     pub state_bytes: usize,
     /// Bytes of the `static` tables (GraphSPN: component places, decomposition sets,
     /// slots; tree mixture: the forests' orders, parents, children and roots, and the
