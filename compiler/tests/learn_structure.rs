@@ -7,6 +7,7 @@ use std::collections::BTreeSet;
 
 use common::learn::*;
 use graphspn_compiler::learn::structure::{StructureError, num_weights};
+use graphspn_compiler::learn::symmetry::SymmetryError;
 use graphspn_compiler::learn::{
     DenseParams, SplitChoice, dense_structure, edge_orbits, symmetric_dense_structure, uniform_spn,
 };
@@ -183,7 +184,6 @@ fn symmetric_structure_is_closed_and_invariant() {
     let plain = dense_structure(5, 3, &p, 0).unwrap();
     assert!(edge_orbits(&plain, &star_group()).is_err());
     // A permutation naming a variable past the last is refused, not indexed.
-    use graphspn_compiler::learn::symmetry::SymmetryError;
     for bad in [vec![1, 0, 2, 3, 5], vec![0, 1, 2, 3], vec![0, 0, 2, 3, 4]] {
         assert!(
             matches!(

@@ -7,7 +7,7 @@ use graphspn_compiler::codegen::{CodegenOptions, generate};
 use graphspn_compiler::decompose::{DecompositionParams, decompose_best};
 use graphspn_compiler::learn::{Model, ModelFileError, check_template_spn, normalise_weights};
 use graphspn_compiler::map::TopoMap;
-use graphspn_compiler::spn::Node;
+use graphspn_compiler::spn::{Node, Spn};
 
 fn demo_text() -> String {
     std::fs::read_to_string(concat!(
@@ -111,6 +111,14 @@ fn load_and_codegen_refuse_the_same_template_spns() {
     }
 }
 
+/// The weights of the demo singleton SPN's sum (node 10).
+fn singleton_weights(spn: &mut Spn) -> &mut Vec<f64> {
+    let Node::Sum { weights, .. } = &mut spn.nodes[10] else {
+        panic!("node 10 is the singleton's sum")
+    };
+    weights
+}
+
 #[test]
 fn weights_in_a_model_file_are_relative() {
     let text = demo_text();
@@ -133,24 +141,18 @@ fn weights_in_a_model_file_are_relative() {
         assert_eq!(normalise_weights(spn), 0);
     }
     assert_eq!(again.spns, good.spns);
-    // The count of rescaled sums: the one changed above.
+    // It counts the sums it rescales: one made relative here.
     let mut relative = good.spns[3].clone();
-    let Node::Sum { weights, .. } = &mut relative.nodes[10] else {
-        unreachable!()
-    };
-    weights[5] *= 3.0;
+    singleton_weights(&mut relative)[5] *= 3.0;
     assert_eq!(normalise_weights(&mut relative), 1);
     // A sum whose weights are all 0 (which the file check refuses) has nothing to
     // rescale by: it is left as it is, not divided by 0.
     let mut zero = good.spns[3].clone();
-    let Node::Sum { weights, .. } = &mut zero.nodes[10] else {
-        panic!("node 10 is the singleton's sum")
-    };
-    weights.iter_mut().for_each(|w| *w = 0.0);
+    singleton_weights(&mut zero)
+        .iter_mut()
+        .for_each(|w| *w = 0.0);
     assert_eq!(normalise_weights(&mut zero), 0);
-    let Node::Sum { weights, .. } = &zero.nodes[10] else {
-        unreachable!()
-    };
+    let weights = singleton_weights(&mut zero);
     assert!(weights.iter().all(|&w| w == 0.0), "{weights:?}");
     // And the instance SPN built from rescaled weights validates as normalised.
     m.spns[3].validate().unwrap();
