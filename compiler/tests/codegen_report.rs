@@ -7,7 +7,7 @@ use graphspn_compiler::codegen::{
     Builder, CodegenOptions, Vectorisation, generate_trees_with_report,
 };
 use graphspn_compiler::map::TopoMap;
-use graphspn_compiler::treemix::{SpanningTrees, TreeMixture};
+use graphspn_compiler::treemix::{NO_PARENT, SpanningTrees, TreeMixture};
 
 /// The demo model on demo map `file` with 5 decompositions, seed 0.
 fn builder(file: &str, v: Vectorisation) -> Builder {
@@ -323,4 +323,84 @@ fn tree_generation_refuses_inputs_that_do_not_fit() {
         generate_trees_with_report(&model, &fewer, &own, &options),
         Err(CodegenError::ClassMismatch { .. })
     ));
+}
+
+/// The tree mixture's multiply-add counts: every edge of a forest is one message, a
+/// `C × C` matrix times a row of `K = ⌈C / lanes⌉` lane vectors (`C · K` lane-vector
+/// multiply-adds); `marginals` sends each message up and down, `mpe` adds a backtrack
+/// of the largest forest, and a state update re-sends the messages on the paths from
+/// the place to its roots (the worst place) before the downward pass.
+#[test]
+fn tree_multiply_adds_count_one_matrix_row_product_per_message() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
+    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
+    let map = TopoMap::load(dir.join("floor.json")).unwrap();
+    let forests = SpanningTrees::covering(&map, model.trees, 0).unwrap();
+    let (n, c) = (map.num_places(), map.classes.len());
+    // Edges per forest: its places with a parent, counted from the forests themselves.
+    let per_forest: Vec<usize> = forests
+        .forests
+        .iter()
+        .map(|f| f.parent.iter().filter(|&&p| p != NO_PARENT).count())
+        .collect();
+    let edges: usize = per_forest.iter().sum();
+    assert!(edges >= 2 * (n - 1), "{per_forest:?}: spanning forests");
+    let worst_path = (0..n)
+        .map(|v| {
+            forests
+                .forests
+                .iter()
+                .map(|f| f.depth[v] as usize)
+                .sum::<usize>()
+        })
+        .max()
+        .unwrap();
+    for v in [Vectorisation::Scalar, Vectorisation::Simd] {
+        let options = CodegenOptions {
+            vectorisation: v,
+            ..Default::default()
+        };
+        let (_, r) = generate_trees_with_report(&model, &map, &forests, &options).unwrap();
+        let mv = c * c.div_ceil(r.lanes);
+        if v == Vectorisation::Scalar {
+            assert_eq!((r.lanes, mv), (1, c * c));
+        }
+        assert_eq!(r.macs_log_likelihood, edges * mv, "{v:?}");
+        assert_eq!(r.macs_marginals, 2 * edges * mv, "{v:?}");
+        let largest = per_forest.iter().max().unwrap();
+        assert_eq!(r.macs_mpe, (edges + largest) * mv, "{v:?}");
+        assert_eq!(r.macs_observe_marginals, (worst_path + edges) * mv, "{v:?}");
+    }
+}
+
+/// Every figure of the report on the demo floor, for both model families and both
+/// vectorisations, pinned: the stack bounds' margins, the state and table bytes and
+/// the multiply-add counts are what firmware budgets and the README rest on, so any
+/// change to them must be reviewed (`cargo insta review`), not slip in with a refactor.
+#[test]
+fn demo_floor_report_figures_are_pinned() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
+    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
+    let map = TopoMap::load(dir.join("floor.json")).unwrap();
+    let forests = SpanningTrees::covering(&map, model.trees, 0).unwrap();
+    let mut figures = String::new();
+    let trees = |v: Vectorisation, budget: Option<usize>| {
+        let options = CodegenOptions {
+            vectorisation: v,
+            max_stack_bytes: budget,
+            ..Default::default()
+        };
+        generate_trees_with_report(&model, &map, &forests, &options)
+            .unwrap()
+            .1
+    };
+    for v in [Vectorisation::Scalar, Vectorisation::Simd] {
+        let spn = demo("floor.json", v);
+        let tm = trees(v, None);
+        figures += &format!("GraphSPN {v:?}: {spn:#?}\ntree mixture {v:?}: {tm:#?}\n");
+    }
+    // A 6,400-byte budget keeps the factor table off every scalar tree entry point.
+    let small = trees(Vectorisation::Scalar, Some(6400));
+    figures += &format!("tree mixture Scalar, 6,400-byte budget: {small:#?}\n");
+    insta::assert_snapshot!(figures);
 }
