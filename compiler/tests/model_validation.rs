@@ -174,3 +174,26 @@ fn template_spn_errors_name_their_node() {
     assert_eq!(err.node(), None, "{err}");
     assert!(check_template_spn(&good.spns[3], 1, classes).is_ok());
 }
+
+/// A template's edges in a model file must be as the template defines them: sorted
+/// `(a, b)` pairs with `a < b`. Reversed or reordered edges describe the same shape
+/// but would pair the SPN's variables differently, so they are refused, naming it.
+#[test]
+fn template_edges_out_of_order_are_refused() {
+    let good = Model::from_json(&demo_text()).unwrap();
+    let reversed = |m: &mut Model| m.templates[2].edges = vec![(1, 0)];
+    let reordered = |m: &mut Model| m.templates[1].edges = vec![(0, 2), (0, 1)];
+    for (mutate, name) in [(reversed as fn(&mut Model), "pair"), (reordered, "three")] {
+        let mut m = good.clone();
+        mutate(&mut m);
+        let json = serde_json::to_string(&m).unwrap();
+        let Err(err) = Model::from_json_named(&json, "bad-model.json") else {
+            panic!("{name}: edges out of order accepted");
+        };
+        let msg = err.to_string();
+        assert!(
+            msg.contains(&format!("template \"{name}\": edges must be sorted")),
+            "{msg}"
+        );
+    }
+}

@@ -265,6 +265,48 @@ fn non_convergence_is_reported() {
     assert_eq!(r.converged, r.final_change < 1e-9);
 }
 
+/// Convergence needs the largest change strictly below the tolerance: with the
+/// tolerance set to exactly the last nonzero change of a chain (exact after a few
+/// sweeps), BP takes one more sweep, whose change is 0, before it reports convergence.
+#[test]
+fn convergence_needs_a_change_strictly_below_the_tolerance() {
+    let mut fg = FactorGraph::new(vec![2, 2, 2]).unwrap();
+    fg.add_factor(vec![0], vec![3.0, 1.0]).unwrap();
+    fg.add_factor(vec![0, 1], vec![2.0, 1.0, 1.0, 2.0]).unwrap();
+    fg.add_factor(vec![1, 2], vec![2.0, 1.0, 1.0, 2.0]).unwrap();
+    for (schedule, opts) in each_schedule(BpOptions::default()) {
+        let change = |k: usize| {
+            let r = loopy_bp(
+                &fg,
+                &BpOptions {
+                    max_iterations: k,
+                    ..opts
+                },
+            )
+            .unwrap();
+            r.final_change
+        };
+        // The sweeps' changes: positive up to sweep `last`, then exactly 0.
+        let last = (1..10).take_while(|&k| change(k) > 0.0).last().unwrap();
+        assert_eq!(change(last + 1), 0.0, "{schedule:?}");
+        let c = change(last);
+        let r = loopy_bp(
+            &fg,
+            &BpOptions {
+                tolerance: c,
+                ..opts
+            },
+        )
+        .unwrap();
+        assert!(r.converged, "{schedule:?}");
+        assert_eq!(
+            (r.iterations, r.final_change),
+            (last + 1, 0.0),
+            "{schedule:?}: tolerance {c}"
+        );
+    }
+}
+
 #[test]
 fn invalid_inputs_are_rejected() {
     let mut fg = FactorGraph::new(vec![2, 2]).unwrap();
