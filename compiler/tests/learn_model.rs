@@ -284,3 +284,28 @@ fn smoothing_runs_linearly_from_start_to_end() {
     };
     assert_eq!(one.smoothing(0), 30.0);
 }
+
+/// A template that matches nowhere in the training maps is refused by name before
+/// any learning; the singleton needs no samples (its SPN is the class prior).
+#[test]
+fn a_template_matching_nowhere_is_named() {
+    use graphspn_compiler::learn::{Progress, TrainModelError, train_model};
+    // A path: no place has four neighbours, so no Star fits.
+    let mut m = common::codegen::map(4, 3, &[(0, 1), (1, 2), (2, 3)]);
+    for (i, p) in m.graph.node_weights_mut().enumerate() {
+        p.class = Some((i % 3) as u16);
+    }
+    let maps = std::slice::from_ref(&m);
+    let settings = TrainingSettings {
+        epochs: 1,
+        ..TrainingSettings::default()
+    };
+    let with_star = [Template::star(), Template::pair(), Template::singleton()];
+    match train_model(maps, &with_star, &settings, Progress::Hidden) {
+        Err(TrainModelError::NoSamples(name)) => assert_eq!(name, "star"),
+        other => panic!("expected NoSamples(\"star\"), got {:?}", other.err()),
+    }
+    let without = [Template::pair(), Template::singleton()];
+    let (model, _) = train_model(maps, &without, &settings, Progress::Hidden).unwrap();
+    assert_eq!(model.spns.len(), 2);
+}
