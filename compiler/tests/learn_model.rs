@@ -309,3 +309,21 @@ fn a_template_matching_nowhere_is_named() {
     let (model, _) = train_model(maps, &without, &settings, Progress::Hidden).unwrap();
     assert_eq!(model.spns.len(), 2);
 }
+
+/// The dense structure's counts are checked with the other training settings, each
+/// against its domain and named under `structure`.
+#[test]
+fn structure_counts_out_of_their_domain_are_refused_by_name() {
+    let cases: [(fn(&mut DenseParams), &str); 3] = [
+        (|p| p.decompositions = 17, "structure.decompositions"),
+        (|p| p.subsets = 1, "structure.subsets"),
+        (|p| p.sums = 0, "structure.sums"),
+    ];
+    for (mutate, name) in cases {
+        let mut s = TrainingSettings::default();
+        mutate(&mut s.structure);
+        let err = s.check().expect_err(name);
+        assert_eq!(err.setting, name);
+    }
+    assert!(TrainingSettings::default().check().is_ok());
+}

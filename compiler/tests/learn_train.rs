@@ -407,6 +407,21 @@ fn bad_input_is_reported() {
         augment_with_automorphisms(&[vec![0, 1], vec![1]], &pair_group()),
         Err(TrainError::SampleLength { index: 1, .. })
     ));
+    // A permutation shorter than the sample (its entries in range), and one of the
+    // sample's length naming a variable past its end: each refused on its own.
+    for bad in [vec![1, 0], vec![0, 3, 1]] {
+        assert!(
+            matches!(
+                augment_with_automorphisms(&[vec![0, 1, 2]], &[bad.clone()]),
+                Err(TrainError::SampleLength {
+                    index: 0,
+                    len: 3,
+                    ..
+                })
+            ),
+            "{bad:?}"
+        );
+    }
     let zero = TrainingSettings {
         smoothing_end: 0.0,
         ..s
