@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Mutation testing through the root crate's tests, for code that only generated
+# modules exercise (the runtime engine, the tree-mixture driver, the generator's tree
+# code). cargo-mutants limits its test targets per package, so for these it cannot run
+# the root crate's generated-module tests alone; this runner applies each mutant that
+# `cargo mutants --list --json --diff` lists to a scratch clone and runs the given
+# test command itself.
+#
+# Usage:
+#   cargo mutants -p graphspn-runtime -f 'runtime/src/__private/engine/*.rs' \
+#     --shard 0/16 --sharding round-robin --list --json --diff > list.json
+#   scripts/mutants-runner.sh list.json OUT_DIR -- cargo test --test generated_state
+#
+# OUT_DIR gets results.txt (one line per mutant: index, CAUGHT / MISSED / UNVIABLE,
+# place, what changed, seconds) and each mutant's test log; a re-run skips the
+# mutants already in results.txt. The scratch clone is OUT_DIR/tree (from the
+# current commit of this checkout; its target directory is reused between mutants).
+# Needs git, jq and patch.
+set -euo pipefail
+
+if [[ $# -lt 4 || $3 != "--" ]]; then
+    echo "usage: $0 LIST.json OUT_DIR -- TEST COMMAND..." >&2
+    exit 2
+fi
+list=$(realpath "$1")
+out=$(realpath -m "$2")
+shift 3
+repo=$(git -C "$(dirname "$0")" rev-parse --show-toplevel)
+timeout_s=${MUTANTS_TIMEOUT:-3000}
+
+mkdir -p "$out"
+tree="$out/tree"
+if [[ ! -d $tree ]]; then
+    git clone -q "$repo" "$tree"
+    git -C "$tree" checkout -q "$(git -C "$repo" rev-parse HEAD)"
+fi
+results="$out/results.txt"
+touch "$results"
+
+run() { (cd "$tree" && timeout "$timeout_s" "$@"); }
+
+if ! grep -q '^baseline ' "$results"; then
+    start=$SECONDS
+    if ! run "$@" >"$out/baseline.log" 2>&1; then
+        echo "baseline fails: see $out/baseline.log" >&2
+        exit 1
+    fi
+    echo "baseline ok $((SECONDS - start))s" >>"$results"
+fi
+
+count=$(jq length "$list")
+for ((i = 0; i < count; i++)); do
+    grep -q "^$i " "$results" && continue
+    file=$(jq -r ".[$i].file" "$list")
+    line=$(jq -r ".[$i].span.start.line" "$list")
+    what=$(jq -r ".[$i].name" "$list" | sed 's/^[^ ]* //')
+    start=$SECONDS
+    git -C "$tree" checkout -q -- .
+    if ! jq -r ".[$i].diff" "$list" | (cd "$tree" && patch -s "$file"); then
+        verdict=NOPATCH
+    elif run "$@" >"$out/$i.log" 2>&1; then
+        verdict=MISSED
+    elif grep -qE '^error\[E[0-9]+\]|^error: could not compile' "$out/$i.log"; then
+        verdict=UNVIABLE
+    else
+        verdict=CAUGHT
+    fi
+    git -C "$tree" checkout -q -- .
+    echo "$i $verdict $file:$line $what $((SECONDS - start))s" >>"$results"
+done
+echo "done: $(grep -c ' CAUGHT ' "$results") caught, $(grep -c ' MISSED ' "$results") missed, $(grep -c ' UNVIABLE ' "$results") unviable"
