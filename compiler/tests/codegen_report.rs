@@ -28,6 +28,42 @@ fn demo(file: &str, v: Vectorisation) -> graphspn_compiler::codegen::CodeReport 
     generate(&builder(file, v)).1
 }
 
+/// The demo tree mixture on demo map `file` with its spanning forests (seed 0), and a
+/// generator of its module and report for a vectorisation and stack budget.
+struct DemoTrees {
+    model: TreeMixture,
+    map: TopoMap,
+    forests: SpanningTrees,
+}
+
+impl DemoTrees {
+    fn new(file: &str) -> Self {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
+        let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
+        let map = TopoMap::load(dir.join(file)).unwrap();
+        let forests = SpanningTrees::covering(&map, model.trees, 0).unwrap();
+        DemoTrees {
+            model,
+            map,
+            forests,
+        }
+    }
+
+    fn generate(
+        &self,
+        v: Vectorisation,
+        budget: Option<usize>,
+    ) -> (String, graphspn_compiler::codegen::CodeReport) {
+        let options = CodegenOptions {
+            vectorisation: v,
+            max_stack_bytes: budget,
+            ..Default::default()
+        };
+        generate_trees_with_report(&self.model, &self.map, &self.forests, &options)
+            .expect("generation")
+    }
+}
+
 /// A streaming update evaluates the components containing the place in lane groups
 /// assembled on the fly, one per template (the D ≤ 8 components of one template fit
 /// one group): about 2 groups per update on these maps, where the static groups of
@@ -223,18 +259,8 @@ fn fixed_point_wraps_block_templates_and_refuses_other_forms() {
 /// Scalar code folds `u` into the message matrices, SIMD code keeps it in `φ`.
 #[test]
 fn tree_factor_tables_follow_the_stack_budget() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
-    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
-    let map = TopoMap::load(dir.join("saarbrucken_seq2_night1.json")).unwrap();
-    let forests = SpanningTrees::covering(&map, model.trees, 0).unwrap();
-    let trees = |v: Vectorisation, budget: Option<usize>| {
-        let options = CodegenOptions {
-            vectorisation: v,
-            max_stack_bytes: budget,
-            ..Default::default()
-        };
-        generate_trees_with_report(&model, &map, &forests, &options).expect("generation")
-    };
+    let demo = DemoTrees::new("saarbrucken_seq2_night1.json");
+    let trees = |v: Vectorisation, budget: Option<usize>| demo.generate(v, budget);
     let flags = |src: &str| {
         let start = src.find("FactorCache {").expect("the model's cache flags");
         let end = start + src[start..].find('}').unwrap();
@@ -308,14 +334,14 @@ fn write_report_from_any_writes_the_module_it_reports() {
 fn tree_generation_refuses_inputs_that_do_not_fit() {
     use graphspn_compiler::codegen::CodegenError;
     use graphspn_compiler::map::ClassSet;
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
-    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
-    let floor = TopoMap::load(dir.join("floor.json")).unwrap();
-    let big = TopoMap::load(dir.join("saarbrucken_seq2_night1.json")).unwrap();
+    let DemoTrees {
+        model,
+        map: floor,
+        forests: own,
+    } = DemoTrees::new("floor.json");
+    let others = DemoTrees::new("saarbrucken_seq2_night1.json").forests;
     let options = CodegenOptions::default();
-    let own = SpanningTrees::covering(&floor, model.trees, 0).unwrap();
     assert!(generate_trees_with_report(&model, &floor, &own, &options).is_ok());
-    let others = SpanningTrees::covering(&big, model.trees, 0).unwrap();
     assert!(generate_trees_with_report(&model, &floor, &others, &options).is_err());
     let mut fewer = floor.clone();
     fewer.classes = ClassSet::new(vec!["a".into(), "b".into()]).unwrap();
@@ -332,10 +358,8 @@ fn tree_generation_refuses_inputs_that_do_not_fit() {
 /// the place to its roots (the worst place) before the downward pass.
 #[test]
 fn tree_multiply_adds_count_one_matrix_row_product_per_message() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
-    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
-    let map = TopoMap::load(dir.join("floor.json")).unwrap();
-    let forests = SpanningTrees::covering(&map, model.trees, 0).unwrap();
+    let demo = DemoTrees::new("floor.json");
+    let (forests, map) = (&demo.forests, &demo.map);
     let (n, c) = (map.num_places(), map.classes.len());
     // Edges per forest: its places with a parent, counted from the forests themselves.
     let per_forest: Vec<usize> = forests
@@ -356,11 +380,7 @@ fn tree_multiply_adds_count_one_matrix_row_product_per_message() {
         .max()
         .unwrap();
     for v in [Vectorisation::Scalar, Vectorisation::Simd] {
-        let options = CodegenOptions {
-            vectorisation: v,
-            ..Default::default()
-        };
-        let (_, r) = generate_trees_with_report(&model, &map, &forests, &options).unwrap();
+        let (_, r) = demo.generate(v, None);
         let mv = c * c.div_ceil(r.lanes);
         if v == Vectorisation::Scalar {
             assert_eq!((r.lanes, mv), (1, c * c));
@@ -379,21 +399,9 @@ fn tree_multiply_adds_count_one_matrix_row_product_per_message() {
 /// change to them must be reviewed (`cargo insta review`), not slip in with a refactor.
 #[test]
 fn demo_floor_report_figures_are_pinned() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
-    let model = TreeMixture::load(dir.join("tree_model.json")).unwrap();
-    let map = TopoMap::load(dir.join("floor.json")).unwrap();
-    let forests = SpanningTrees::covering(&map, model.trees, 0).unwrap();
+    let demo_trees = DemoTrees::new("floor.json");
+    let trees = |v: Vectorisation, budget: Option<usize>| demo_trees.generate(v, budget).1;
     let mut figures = String::new();
-    let trees = |v: Vectorisation, budget: Option<usize>| {
-        let options = CodegenOptions {
-            vectorisation: v,
-            max_stack_bytes: budget,
-            ..Default::default()
-        };
-        generate_trees_with_report(&model, &map, &forests, &options)
-            .unwrap()
-            .1
-    };
     for v in [Vectorisation::Scalar, Vectorisation::Simd] {
         let spn = demo("floor.json", v);
         let tm = trees(v, None);
