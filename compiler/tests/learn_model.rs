@@ -314,7 +314,8 @@ fn a_template_matching_nowhere_is_named() {
 /// against its domain and named under `structure`.
 #[test]
 fn structure_counts_out_of_their_domain_are_refused_by_name() {
-    let cases: [(fn(&mut DenseParams), &str); 3] = [
+    type Case = (fn(&mut DenseParams), &'static str);
+    let cases: [Case; 3] = [
         (|p| p.decompositions = 17, "structure.decompositions"),
         (|p| p.subsets = 1, "structure.subsets"),
         (|p| p.sums = 0, "structure.sums"),
