@@ -412,7 +412,7 @@ fn bad_input_is_reported() {
     for bad in [vec![1, 0], vec![0, 3, 1]] {
         assert!(
             matches!(
-                augment_with_automorphisms(&[vec![0, 1, 2]], &[bad.clone()]),
+                augment_with_automorphisms(&[vec![0, 1, 2]], std::slice::from_ref(&bad)),
                 Err(TrainError::SampleLength {
                     index: 0,
                     len: 3,
