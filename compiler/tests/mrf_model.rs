@@ -314,3 +314,31 @@ fn a_class_never_seen_without_pseudo_counts_gets_zero_potentials() {
         }
     }
 }
+
+/// Training maps without one labelled edge and no pseudo-count: the joint frequencies
+/// are 0/0, so the table falls back to uniform and every potential is one finite
+/// value (no NaN), under each normalisation.
+#[test]
+fn no_labelled_edge_without_pseudo_counts_gives_uniform_potentials() {
+    let m = map(&[0, 1, 2], &[]);
+    for normalisation in [
+        Normalisation::Joint,
+        Normalisation::Pmi,
+        Normalisation::Normalised,
+        Normalisation::Conditional,
+    ] {
+        let params = CooccurrenceParams {
+            pseudo_count: 0.0,
+            normalisation,
+            coupling: 1.0,
+        };
+        let p = Mrf2::train(std::slice::from_ref(&m), &params).unwrap();
+        let first = p.potential()[0];
+        assert!(first.is_finite() && first > 0.0, "{normalisation:?}: {first}");
+        assert!(
+            p.potential().iter().all(|&v| v == first),
+            "{normalisation:?}: {:?}",
+            p.potential()
+        );
+    }
+}
