@@ -812,3 +812,41 @@ fn a_root_over_children_1400_nats_apart_keeps_its_log_likelihood() {
     assert!((ll[0] - (0.125f64).ln()).abs() < 1e-12, "{}", ll[0]);
     assert!((ll[1] - (0.5f64 + 0.125).ln()).abs() < 1e-12, "{}", ll[1]);
 }
+
+/// Hard EM breaks ties between equally good children of a sum towards the first:
+/// with two identical leaves for class 0 under equal weights, every class-0 sample's
+/// count goes to the first, so after one epoch it holds `N + s` against `s`.
+#[test]
+fn hard_em_gives_a_tie_to_the_first_child() {
+    use graphspn_compiler::spn::Spn;
+    let mut spn = Spn {
+        classes: vec![2],
+        nodes: vec![
+            Node::Leaf { var: 0, class: 0 },
+            Node::Leaf { var: 0, class: 0 },
+            Node::Leaf { var: 0, class: 1 },
+            Node::Sum {
+                children: vec![0, 1, 2],
+                weights: vec![1.0 / 3.0; 3],
+            },
+        ],
+        root: 3,
+    };
+    spn.validate().unwrap();
+    let samples = vec![vec![0]; 10];
+    train(
+        &mut spn,
+        &samples,
+        &fixed(1.0, 1, EmKind::Hard),
+        Progress::Hidden,
+    )
+    .unwrap();
+    let Node::Sum { weights, .. } = &spn.nodes[3] else {
+        panic!("the root is a sum")
+    };
+    // Counts 10, 0, 0 plus smoothing 1 each: 11/13, 1/13, 1/13.
+    let expected = [11.0 / 13.0, 1.0 / 13.0, 1.0 / 13.0];
+    for (w, e) in weights.iter().zip(expected) {
+        assert!((w - e).abs() < 1e-12, "{weights:?}");
+    }
+}

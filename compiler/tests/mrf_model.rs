@@ -334,7 +334,10 @@ fn no_labelled_edge_without_pseudo_counts_gives_uniform_potentials() {
         };
         let p = Mrf2::train(std::slice::from_ref(&m), &params).unwrap();
         let first = p.potential()[0];
-        assert!(first.is_finite() && first > 0.0, "{normalisation:?}: {first}");
+        assert!(
+            first.is_finite() && first > 0.0,
+            "{normalisation:?}: {first}"
+        );
         assert!(
             p.potential().iter().all(|&v| v == first),
             "{normalisation:?}: {:?}",

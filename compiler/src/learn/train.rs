@@ -244,7 +244,8 @@ fn up(f: &Flat, lw: &[f64], x: &[ClassId], s: &mut Scratch) -> (f64, f64) {
     (s.val[f.root], s.mval[f.root])
 }
 
-/// Hard-EM counts: follow the MPE tree from the root (after [`up`]).
+/// Hard-EM counts: follow the MPE tree from the root (after [`up`]). Where children of
+/// a sum tie for the best, the tree takes the first of them (lowest position).
 fn hard_counts(f: &Flat, m: f64, s: &mut Scratch, counts: &mut [f64]) {
     s.mark.fill(0.0);
     s.mark[f.root] = 1.0;
