@@ -1,5 +1,6 @@
 //! End to end: generated modules are built into a temporary crate, run on evidence,
-//! and compared with brute-force enumeration over all labellings.
+//! and compared with brute-force enumeration over all labellings (GraphSPN) or with
+//! `TreeInstance`, the exact host evaluator (tree mixtures).
 
 mod common;
 
@@ -9,11 +10,15 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
 use common::codegen::*;
-use graphspn_compiler::codegen::{CodegenOptions, Precision, Vectorisation, generate};
+use graphspn_compiler::codegen::{
+    CodegenOptions, Precision, Vectorisation, generate, generate_trees_with_report,
+};
 use graphspn_compiler::decompose::Decomposition;
 use graphspn_compiler::learn::Model;
-use graphspn_compiler::map::TopoMap;
+use graphspn_compiler::map::{ClassId, TopoMap};
+use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
+use graphspn_compiler::treemix::{SpanningTrees, TreeInstance};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -423,4 +428,143 @@ fn generated_code_matches_brute_force() {
         }
     }
     assert!(zero_cases < expected.len() / 4, "too few informative cases");
+}
+
+/// What `TreeInstance` answers for one evidence vector.
+struct TreeExpected {
+    module: String,
+    /// Index of the module's instance.
+    instance: usize,
+    evidence: Vec<Vec<f64>>,
+    precision: Precision,
+    labels: Vec<u16>,
+    ll: f64,
+    /// `None` where the labelling has zero likelihood.
+    labelled: Option<f64>,
+    mpe: f64,
+    marginals: Vec<Vec<f64>>,
+}
+
+/// Generated tree-mixture modules (f32 / f64, scalar / SIMD) on random maps of 2 to 8
+/// places with 1 to 3 forests and evidence exponents 1 and 2, against `TreeInstance`:
+/// log-likelihood, labelled log-likelihood, the MPE value and the value its labelling
+/// attains, and the marginals. (The root crate's `tree_fuzz` goes further; this keeps
+/// the generator's own tests running its tree code.)
+#[test]
+fn generated_tree_code_matches_the_tree_instance() {
+    use common::instance::tiny_map;
+    use common::treemix::random_model;
+    let mut modules = vec![];
+    let mut input = String::new();
+    let mut expected = vec![];
+    let mut instances = vec![];
+    let mut rng = ChaCha8Rng::seed_from_u64(77);
+    for seed in 0..8u64 {
+        let s = seed as usize;
+        let (n, c, t) = (2 + s % 7, 2 + s % 3, 1 + s % 3);
+        let map = tiny_map(n, c, seed);
+        let model = random_model(c, t, 1 + (s % 2) as u32, Mixing::Posterior, seed);
+        let trees = SpanningTrees::covering(&map, t, seed).unwrap();
+        let precision = [Precision::F32, Precision::F64][s % 2];
+        let options = CodegenOptions {
+            precision,
+            vectorisation: [Vectorisation::Scalar, Vectorisation::Simd][s / 2 % 2],
+            ..Default::default()
+        };
+        let (src, _) = generate_trees_with_report(&model, &map, &trees, &options).unwrap();
+        let module = format!("trees{seed}");
+        modules.push((module.clone(), src));
+        let mut inst = TreeInstance::build(&model, &map, trees).unwrap();
+        for kind in [0, 1, 3, 4, 5] {
+            let e: Vec<Vec<f64>> = evidence(&mut rng, n, c, kind)
+                .into_iter()
+                .map(|r| match precision {
+                    Precision::F32 => r.into_iter().map(|v| v as f32 as f64).collect(),
+                    Precision::F64 => r,
+                })
+                .collect();
+            let labels: Vec<u16> = (0..n)
+                .map(|p| match (p + kind) % 3 {
+                    0 => u16::MAX,
+                    _ => ((p * 7 + kind) % c) as u16,
+                })
+                .collect();
+            let fixed: Vec<Option<ClassId>> = labels
+                .iter()
+                .map(|&l| (l != u16::MAX).then_some(l))
+                .collect();
+            inst.set_all_evidence(&e).unwrap();
+            let _ = write!(input, "{module}");
+            for v in e.iter().flatten() {
+                let _ = write!(input, " {v:e}");
+            }
+            for l in &labels {
+                let _ = write!(input, " {l}");
+            }
+            input.push('\n');
+            expected.push(TreeExpected {
+                module: module.clone(),
+                instance: instances.len(),
+                evidence: e.clone(),
+                precision,
+                labels,
+                ll: inst.log_likelihood().unwrap(),
+                labelled: inst
+                    .log_likelihood_labelled(&fixed)
+                    .ok()
+                    .filter(|l| l.is_finite()),
+                mpe: inst.mpe(&vec![None; n]).unwrap().log_max_product,
+                marginals: inst.marginals().unwrap().mixed.probs,
+            });
+        }
+        instances.push(inst);
+    }
+    let out = build_and_run(&modules, &input);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), expected.len());
+    for (line, x) in lines.iter().zip(&expected) {
+        let ctx = format!("{} labels {:?}\ngot {line}", x.module, x.labels);
+        let (n, tol) = match x.precision {
+            Precision::F32 => (x.labels.len(), 1e-4),
+            Precision::F64 => (x.labels.len(), 1e-9),
+        };
+        let t: Vec<&str> = line.split_whitespace().collect();
+        let num = |s: &str| {
+            s.parse::<f64>()
+                .unwrap_or_else(|_| panic!("not a number {s}\n{ctx}"))
+        };
+        assert!(
+            close(num(t[0]), x.ll, tol),
+            "log-likelihood {}\n{ctx}",
+            x.ll
+        );
+        match x.labelled {
+            Some(l) => assert!(close(num(t[1]), l, tol), "labelled {l}\n{ctx}"),
+            None => assert_eq!(t[1], "ERR:ZeroLikelihood", "labelled\n{ctx}"),
+        }
+        assert!(close(num(t[2]), x.mpe, tol), "mpe value {}\n{ctx}", x.mpe);
+        // The returned labelling attains the max-product value.
+        let inst = &mut instances[x.instance];
+        inst.set_all_evidence(&x.evidence).unwrap();
+        let lab: Vec<Option<ClassId>> = t[3..3 + n].iter().map(|s| s.parse().ok()).collect();
+        let attained = inst.mpe(&lab).unwrap().log_max_product;
+        assert!(
+            close(attained, x.mpe, tol),
+            "mpe labels attain {attained}\n{ctx}"
+        );
+        assert!(
+            close(num(t[3 + n]), x.ll, tol),
+            "marginals' log-likelihood\n{ctx}"
+        );
+        let marg: Vec<f64> = t[4 + n..].iter().map(|s| num(s)).collect();
+        for (p, row) in x.marginals.iter().enumerate() {
+            for (k, &v) in row.iter().enumerate() {
+                let g = marg[p * row.len() + k];
+                assert!(
+                    (g - v).abs() <= tol,
+                    "marginal p{p} c{k}: {g} vs {v}\n{ctx}"
+                );
+            }
+        }
+    }
 }
