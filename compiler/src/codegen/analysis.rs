@@ -363,6 +363,42 @@ mod tests {
         }
     }
 
+    /// Enumeration stops at either limit on its own: 21 binary variables give 2^21
+    /// assignments, over [`MAX_ASSIGNMENTS`], though their work (64 nodes) is far under
+    /// [`MAX_WORK`]; 2^20 of them are enumerated.
+    #[test]
+    fn enumeration_is_refused_past_the_assignment_limit_alone() {
+        let independent = |n: u32| {
+            let mut nodes = Vec::new();
+            for var in 0..n {
+                nodes.push(Node::Leaf { var, class: 0 });
+                nodes.push(Node::Leaf { var, class: 1 });
+            }
+            let sums: Vec<u32> = (0..n)
+                .map(|v| {
+                    nodes.push(Node::Sum {
+                        children: vec![2 * v, 2 * v + 1],
+                        weights: vec![0.25, 0.75],
+                    });
+                    nodes.len() as u32 - 1
+                })
+                .collect();
+            nodes.push(Node::Product { children: sums });
+            Spn {
+                classes: vec![2; n as usize],
+                root: nodes.len() as u32 - 1,
+                nodes,
+            }
+        };
+        let big = independent(21);
+        big.validate().unwrap();
+        assert!(1 << 21 > MAX_ASSIGNMENTS && (1 << 21) * 64 < MAX_WORK);
+        assert_eq!(enumerated_minima(&big), None);
+        let (value, max) = enumerated_minima(&independent(20)).expect("2^20 assignments");
+        let expected = 0.25f64.powi(20);
+        assert!((value / expected - 1.0).abs() < 1e-12 && (max / expected - 1.0).abs() < 1e-12);
+    }
+
     /// The block-wise bounds are positive lower bounds of the enumerated minima, and
     /// not far below them.
     #[test]
