@@ -392,7 +392,7 @@ mod tests {
         };
         let big = independent(21);
         big.validate().unwrap();
-        assert!(1 << 21 > MAX_ASSIGNMENTS && (1 << 21) * 64 < MAX_WORK);
+        const { assert!(1 << 21 > MAX_ASSIGNMENTS && (1 << 21) * 64 < MAX_WORK) };
         assert_eq!(enumerated_minima(&big), None);
         let (value, max) = enumerated_minima(&independent(20)).expect("2^20 assignments");
         let expected = 0.25f64.powi(20);
