@@ -315,3 +315,38 @@ pub(crate) fn init_weights(
     set_normalised(spn, &raw);
     Ok(())
 }
+
+#[cfg(all(test, feature = "host"))]
+mod tests {
+    use super::*;
+
+    /// Each orbit's initial weight is `1 + jitter·u` with `u` the orbit's draw from
+    /// the seeded generator, then each sum is normalised: with the identity alone,
+    /// every edge is its own orbit.
+    #[test]
+    fn initial_weights_are_one_plus_jitter_times_the_draw() {
+        let mut spn = Spn {
+            classes: vec![3],
+            nodes: vec![
+                Node::Leaf { var: 0, class: 0 },
+                Node::Leaf { var: 0, class: 1 },
+                Node::Leaf { var: 0, class: 2 },
+                Node::Sum {
+                    children: vec![0, 1, 2],
+                    weights: vec![0.0; 3],
+                },
+            ],
+            root: 3,
+        };
+        init_weights(&mut spn, &[vec![0]], 9, 0.5).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let raw: Vec<f64> = (0..3).map(|_| 1.0 + 0.5 * rng.random::<f64>()).collect();
+        let z: f64 = raw.iter().sum();
+        let Node::Sum { weights, .. } = &spn.nodes[3] else {
+            panic!("the root is a sum")
+        };
+        for (w, r) in weights.iter().zip(&raw) {
+            assert!((w - r / z).abs() < 1e-15, "{weights:?} vs {raw:?}");
+        }
+    }
+}
