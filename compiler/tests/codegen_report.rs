@@ -412,3 +412,22 @@ fn demo_floor_report_figures_are_pinned() {
     figures += &format!("tree mixture Scalar, 6,400-byte budget: {small:#?}\n");
     insta::assert_snapshot!(figures);
 }
+
+/// A decompositions file gives the module of the decompositions it holds: the same
+/// as handing them to the builder in memory.
+#[test]
+fn a_decompositions_file_gives_the_module_of_its_decompositions() {
+    use graphspn_compiler::decompose::{DecompositionParams, decompose_best, file};
+    let b = builder("floor.json", Vectorisation::Scalar);
+    let inputs = b.load().expect("demo inputs");
+    let (model, map) = (&inputs.model, &inputs.map);
+    let decs = decompose_best(map, &model.templates, &DecompositionParams::default()).unwrap();
+    assert!(!decs.is_empty());
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("decs.json");
+    file::save(&path, &decs, map, &model.templates).unwrap();
+    let from_file = generate(&b.clone().decompositions_file(&path));
+    let given = generate(&b.clone().decompositions(decs));
+    assert!(from_file.0 == given.0, "the file's module differs");
+    assert_eq!(from_file.1, given.1);
+}
