@@ -287,12 +287,7 @@ fn evidence_and_class_checks_refuse_only_bad_input() {
 fn a_class_never_seen_without_pseudo_counts_gets_zero_potentials() {
     // Classes A and B only; C (index 2) never occurs.
     let m = map(&[0, 1, 0, 1], &[(0, 1), (1, 2), (2, 3)]);
-    for normalisation in [
-        Normalisation::Joint,
-        Normalisation::Pmi,
-        Normalisation::Normalised,
-        Normalisation::Conditional,
-    ] {
+    for normalisation in EVERY_NORMALISATION {
         let params = CooccurrenceParams {
             pseudo_count: 0.0,
             normalisation,
@@ -321,12 +316,7 @@ fn a_class_never_seen_without_pseudo_counts_gets_zero_potentials() {
 #[test]
 fn no_labelled_edge_without_pseudo_counts_gives_uniform_potentials() {
     let m = map(&[0, 1, 2], &[]);
-    for normalisation in [
-        Normalisation::Joint,
-        Normalisation::Pmi,
-        Normalisation::Normalised,
-        Normalisation::Conditional,
-    ] {
+    for normalisation in EVERY_NORMALISATION {
         let params = CooccurrenceParams {
             pseudo_count: 0.0,
             normalisation,
@@ -345,3 +335,11 @@ fn no_labelled_edge_without_pseudo_counts_gives_uniform_potentials() {
         );
     }
 }
+
+/// Every normalisation of co-occurrence potentials.
+const EVERY_NORMALISATION: [Normalisation; 4] = [
+    Normalisation::Joint,
+    Normalisation::Pmi,
+    Normalisation::Normalised,
+    Normalisation::Conditional,
+];
