@@ -225,8 +225,11 @@ fn target_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/codegen-e2e")
 }
 
-/// Writes a crate holding every module, builds and runs it on `input`, returns stdout.
-pub fn build_and_run(modules: &[(String, String)], input: &str) -> String {
+/// Writes a crate named `name` holding every module, builds and runs it on `input`,
+/// returns stdout. Tests run in parallel and share one target folder, so each test
+/// names its own crate: with one name, a test could run the binary that another
+/// test's build had just written.
+pub fn build_and_run(name: &str, modules: &[(String, String)], input: &str) -> String {
     let dir = tempfile::tempdir().unwrap();
     let runtime = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../runtime")
@@ -235,7 +238,7 @@ pub fn build_and_run(modules: &[(String, String)], input: &str) -> String {
     std::fs::write(
         dir.path().join("Cargo.toml"),
         format!(
-            "[package]\nname = \"codegen-e2e\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\n[dependencies]\ngraphspn-runtime = {{ path = {:?} }}\n\n[workspace]\n",
+            "[package]\nname = \"{name}\"\nversion = \"0.0.0\"\nedition = \"2024\"\n\n[dependencies]\ngraphspn-runtime = {{ path = {:?} }}\n\n[workspace]\n",
             runtime.display().to_string()
         ),
     )
@@ -270,7 +273,7 @@ pub fn build_and_run(modules: &[(String, String)], input: &str) -> String {
         !warnings.contains("warning"),
         "generated code has warnings:\n{warnings}"
     );
-    let mut child = Command::new(target_dir().join("release/codegen-e2e"))
+    let mut child = Command::new(target_dir().join("release").join(name))
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .spawn()
@@ -358,7 +361,7 @@ fn generated_code_matches_brute_force() {
             ));
         }
     }
-    let out = build_and_run(&modules, &input);
+    let out = build_and_run("e2e-brute-force", &modules, &input);
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), expected.len());
     let mut zero_cases = 0;
@@ -519,7 +522,7 @@ fn generated_tree_code_matches_the_tree_instance() {
         }
         instances.push(inst);
     }
-    let out = build_and_run(&modules, &input);
+    let out = build_and_run("e2e-trees", &modules, &input);
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), expected.len());
     for (line, x) in lines.iter().zip(&expected) {

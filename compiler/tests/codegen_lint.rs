@@ -328,7 +328,9 @@ fn experiments_modules_import_without_a_circle() {
 const MAX_FILE_LINES: usize = 800;
 
 /// No Rust file of the project — sources, tests, benches, examples, build scripts and
-/// the firmware — is longer than [`MAX_FILE_LINES`].
+/// the firmware — is longer than [`MAX_FILE_LINES`]. Generated code (the runtime's test
+/// fixtures, whose first line is the generator's `@generated` header) is not written
+/// by hand and is exempt.
 #[test]
 fn no_source_file_over_800_lines() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -342,6 +344,7 @@ fn no_source_file_over_800_lines() {
         "benches",
         "examples",
         "runtime/src",
+        "runtime/tests",
         "generated/src",
         "firmware/src",
         "firmware/maps",
@@ -374,6 +377,7 @@ fn no_source_file_over_800_lines() {
     }
     let long: Vec<String> = files
         .iter()
+        .filter(|(_, text)| !text.starts_with("// @generated"))
         .filter(|(_, text)| text.lines().count() > MAX_FILE_LINES)
         .map(|(p, text)| format!("{} ({} lines)", p.display(), text.lines().count()))
         .collect();

@@ -380,14 +380,22 @@ pub fn randomise_weights(spn: &mut Spn, rng: &mut ChaCha8Rng) {
 /// authors' parameters, or plain dense ones with `decompositions` random splits per
 /// region), random weights, uniform Singleton, `classes` classes.
 pub fn dense_model(classes: usize, symmetric: bool, decompositions: usize, seed: u64) -> Model {
-    use graphspn_compiler::learn::{
-        DenseParams, dense_structure, symmetric_dense_structure, uniform_spn,
-    };
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let params = DenseParams {
+    let params = graphspn_compiler::learn::DenseParams {
         decompositions,
-        ..DenseParams::default()
+        ..Default::default()
     };
+    dense_model_with(classes, symmetric, &params, seed)
+}
+
+/// [`dense_model`] with the given structure parameters.
+pub fn dense_model_with(
+    classes: usize,
+    symmetric: bool,
+    params: &graphspn_compiler::learn::DenseParams,
+    seed: u64,
+) -> Model {
+    use graphspn_compiler::learn::{dense_structure, symmetric_dense_structure, uniform_spn};
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let templates = Template::paper_set();
     let spns = templates
         .iter()
@@ -399,12 +407,12 @@ pub fn dense_model(classes: usize, symmetric: bool, decompositions: usize, seed:
                 symmetric_dense_structure(
                     t.num_nodes,
                     classes as u32,
-                    &params,
+                    params,
                     &t.automorphisms(),
                     seed,
                 )
             } else {
-                dense_structure(t.num_nodes, classes as u32, &params, seed)
+                dense_structure(t.num_nodes, classes as u32, params, seed)
             }
             .unwrap();
             randomise_weights(&mut spn, &mut rng);

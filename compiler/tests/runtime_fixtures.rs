@@ -1,0 +1,369 @@
+//! The runtime's fixtures (`runtime/tests/fixtures/`): generated modules of small maps
+//! — every kind the generator emits: GraphSPN and tree mixture, `f32` and `f64`,
+//! scalar and SIMD, float and fixed point — and what the brute-force oracle or
+//! `TreeInstance` answers on them. With them the runtime's own tests run real generated
+//! code without the generator, in seconds: a change to the runtime alone (its mutation
+//! testing, docs/TESTING.md) is checked without rebuilding the compiler.
+//!
+//! This test regenerates every fixture and fails when a checked-in file differs;
+//! `GRAPHSPN_UPDATE_FIXTURES=1 cargo test -p graphspn-compiler --test runtime_fixtures`
+//! rewrites them.
+
+mod common;
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use common::codegen::{decompose, dense_model_with, map, model, oracle, random_spn, tiny};
+use common::instance::tiny_map;
+use common::treemix::random_model;
+use graphspn_compiler::codegen::{
+    Arithmetic, CodegenOptions, Precision, Vectorisation, generate, generate_trees_with_report,
+};
+use graphspn_compiler::decompose::Decomposition;
+use graphspn_compiler::learn::{DenseParams, Model};
+use graphspn_compiler::map::{ClassId, TopoMap};
+use graphspn_compiler::spn::Mixing;
+use graphspn_compiler::template::Template;
+use graphspn_compiler::treemix::{SpanningTrees, TreeInstance};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn fixture_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../runtime/tests/fixtures")
+}
+
+fn options(precision: Precision, scalar: bool, arithmetic: Arithmetic) -> CodegenOptions {
+    CodegenOptions {
+        precision,
+        vectorisation: if scalar {
+            Vectorisation::Scalar
+        } else {
+            Vectorisation::Simd
+        },
+        arithmetic,
+        model_label: "runtime fixture".into(),
+        ..Default::default()
+    }
+}
+
+/// The answers of a reference evaluator for one evidence vector (`None`: zero
+/// likelihood).
+struct Answers {
+    ll: Option<f64>,
+    labelled: Option<f64>,
+    mpe: Option<f64>,
+    marginals: Vec<Vec<f64>>,
+}
+
+/// A model family's reference evaluator.
+enum Reference {
+    Spn(Model, Vec<Decomposition>),
+    Trees(Box<TreeInstance>),
+}
+
+impl Reference {
+    fn answers(&mut self, e: &[Vec<f64>], labels: &[u16]) -> Answers {
+        let finite = |x: f64| x.is_finite().then_some(x);
+        match self {
+            Reference::Spn(m, decs) => {
+                let o = oracle(m, decs, e, labels);
+                Answers {
+                    ll: finite(o.ll),
+                    labelled: finite(o.lll),
+                    mpe: finite(o.mpe),
+                    marginals: o.marg,
+                }
+            }
+            Reference::Trees(inst) => {
+                inst.set_all_evidence(e).unwrap();
+                let fixed: Vec<Option<ClassId>> = labels
+                    .iter()
+                    .map(|&l| (l != u16::MAX).then_some(l))
+                    .collect();
+                Answers {
+                    ll: inst.log_likelihood().ok().and_then(finite),
+                    labelled: inst.log_likelihood_labelled(&fixed).ok().and_then(finite),
+                    mpe: inst
+                        .mpe(&vec![None; e.len()])
+                        .ok()
+                        .and_then(|m| finite(m.log_max_product)),
+                    marginals: inst.marginals().unwrap().mixed.probs,
+                }
+            }
+        }
+    }
+}
+
+struct Fixture {
+    name: &'static str,
+    source: String,
+    places: usize,
+    classes: usize,
+    precision: Precision,
+    reference: Reference,
+}
+
+fn spn_fixture(
+    name: &'static str,
+    (m, mp, decs): (Model, TopoMap, Vec<Decomposition>),
+    opts: CodegenOptions,
+) -> Fixture {
+    let source = generate(&m, &mp, &decs, &opts).unwrap();
+    Fixture {
+        name,
+        source,
+        places: mp.num_places(),
+        classes: mp.classes.len(),
+        precision: opts.precision,
+        reference: Reference::Spn(m, decs),
+    }
+}
+
+fn tree_fixture(
+    name: &'static str,
+    (places, classes, trees, gamma, mixing, seed): (usize, usize, usize, u32, Mixing, u64),
+    opts: CodegenOptions,
+) -> Fixture {
+    let mp = tiny_map(places, classes, seed);
+    let m = random_model(classes, trees, gamma, mixing, seed);
+    let forests = SpanningTrees::covering(&mp, trees, seed).unwrap();
+    let (source, _) = generate_trees_with_report(&m, &mp, &forests, &opts).unwrap();
+    Fixture {
+        name,
+        source,
+        places,
+        classes,
+        precision: opts.precision,
+        reference: Reference::Trees(Box::new(TreeInstance::build(&m, &mp, forests).unwrap())),
+    }
+}
+
+/// A map around a star with a tail and a triangle: room for Star, Three, Pair and
+/// Singleton components.
+fn star_map(classes: usize) -> TopoMap {
+    map(
+        7,
+        classes,
+        &[(0, 1), (0, 2), (0, 3), (0, 4), (4, 5), (5, 6), (1, 2)],
+    )
+}
+
+/// The real model structure (dense region blocks), kept small: 2 sums per region.
+fn dense(
+    classes: usize,
+    symmetric: bool,
+    splits: usize,
+    seed: u64,
+) -> (Model, TopoMap, Vec<Decomposition>) {
+    let params = DenseParams {
+        decompositions: splits,
+        sums: 2,
+        ..Default::default()
+    };
+    let m = dense_model_with(classes, symmetric, &params, seed);
+    let g = map(
+        7,
+        classes,
+        &[
+            (0, 1),
+            (1, 2),
+            (2, 3),
+            (3, 4),
+            (4, 5),
+            (5, 6),
+            (1, 3),
+            (4, 6),
+        ],
+    );
+    let decs = (0..3)
+        .map(|s| decompose(&g, &m.templates, seed + s))
+        .collect();
+    (m, g, decs)
+}
+
+/// Random layered SPNs (exact-zero weights when `zeros`) on the star map.
+fn layered(classes: usize, zeros: bool, seed: u64) -> (Model, TopoMap, Vec<Decomposition>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let templates = vec![
+        Template::star(),
+        Template::three(),
+        Template::pair(),
+        Template::singleton(),
+    ];
+    let spns = templates
+        .iter()
+        .map(|t| random_spn(&mut rng, t.num_nodes, classes, zeros, !zeros))
+        .collect();
+    let m = model(classes, templates, spns);
+    let g = star_map(classes);
+    let decs = (0..4)
+        .map(|s| decompose(&g, &m.templates, seed + s))
+        .collect();
+    (m, g, decs)
+}
+
+/// Every fixture: each kind of module the generator emits.
+fn fixtures() -> Vec<Fixture> {
+    use Arithmetic::{Fixed, Float};
+    use Precision::{F32, F64};
+    vec![
+        spn_fixture("spn_tiny_simd_f32", tiny(), options(F32, false, Float)),
+        spn_fixture(
+            "spn_dense_simd_f32",
+            dense(2, true, 1, 5),
+            options(F32, false, Float),
+        ),
+        spn_fixture(
+            "spn_dense_simd_f64",
+            dense(2, false, 3, 8),
+            options(F64, false, Float),
+        ),
+        spn_fixture(
+            "spn_dense_scalar_f32",
+            dense(2, false, 2, 7),
+            options(F32, true, Float),
+        ),
+        spn_fixture(
+            "spn_dense_fixed",
+            dense(2, true, 1, 6),
+            options(F32, true, Fixed),
+        ),
+        spn_fixture(
+            "spn_layered_scalar_f64",
+            layered(2, true, 11),
+            options(F64, true, Float),
+        ),
+        spn_fixture(
+            "spn_layered_simd_f32",
+            layered(3, false, 12),
+            options(F32, false, Float),
+        ),
+        tree_fixture(
+            "trees_scalar_f32",
+            (7, 3, 2, 1, Mixing::Posterior, 21),
+            options(F32, true, Float),
+        ),
+        tree_fixture(
+            "trees_simd_f32",
+            (8, 4, 3, 2, Mixing::Average, 22),
+            options(F32, false, Float),
+        ),
+        tree_fixture(
+            "trees_scalar_f64",
+            (6, 3, 3, 2, Mixing::Average, 23),
+            options(F64, true, Float),
+        ),
+        tree_fixture(
+            "trees_simd_f64",
+            (7, 2, 2, 1, Mixing::Posterior, 24),
+            options(F64, false, Float),
+        ),
+        tree_fixture(
+            "trees_fixed",
+            (8, 3, 2, 1, Mixing::Posterior, 25),
+            options(F32, true, Fixed),
+        ),
+    ]
+}
+
+/// Evidence of kind `kind`: random rows, rows with exact zeros, tiny values (scaled far
+/// below 1), uniform rows, all ones.
+fn evidence(rng: &mut ChaCha8Rng, n: usize, c: usize, kind: usize) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|p| {
+            let mut row: Vec<f64> = (0..c)
+                .map(|k| match kind {
+                    0 | 1 => rng.random_range(0.02..1.0),
+                    2 if (p + k) % 3 == 0 => 0.0,
+                    2 => rng.random_range(0.1..2.0),
+                    3 => rng.random_range(1e-30..1e-20),
+                    4 => 0.5,
+                    _ => 1.0,
+                })
+                .collect();
+            if row.iter().all(|&v| v == 0.0) {
+                row[0] = 0.25;
+            }
+            row
+        })
+        .collect()
+}
+
+/// The fixture's expected-answers file: see `runtime/tests/generated_fixtures.rs`.
+fn expected(f: &mut Fixture) -> String {
+    let (n, c) = (f.places, f.classes);
+    let mut rng = ChaCha8Rng::seed_from_u64(2026);
+    let round = |v: f64| match f.precision {
+        Precision::F32 => v as f32 as f64,
+        Precision::F64 => v,
+    };
+    let mut cases: Vec<Vec<Vec<f64>>> = (0..6)
+        .map(|kind| {
+            evidence(&mut rng, n, c, kind)
+                .into_iter()
+                .map(|r| r.into_iter().map(round).collect())
+                .collect()
+        })
+        .collect();
+    // Case 6: the product of cases 0 and 1, what a state holds after `set_all(case 0)`
+    // and `observe` of each row of case 1.
+    let product = cases[0]
+        .iter()
+        .zip(&cases[1])
+        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).collect())
+        .collect();
+    cases.push(product);
+    let mut out = String::new();
+    let _ = writeln!(out, "places {n} classes {c}");
+    let num = |x: Option<f64>| x.map_or("zero".to_string(), |v| format!("{v:e}"));
+    for (k, e) in cases.iter().enumerate() {
+        let labels: Vec<u16> = (0..n)
+            .map(|p| match (p + k) % 3 {
+                0 => u16::MAX,
+                _ => ((p * 7 + k) % c) as u16,
+            })
+            .collect();
+        let a = f.reference.answers(e, &labels);
+        let _ = writeln!(out, "case {k}");
+        let row = |v: &[f64]| v.iter().map(|x| format!(" {x:e}")).collect::<String>();
+        let _ = writeln!(out, "evidence{}", row(&e.concat()));
+        let labels: String = labels.iter().map(|l| format!(" {l}")).collect();
+        let _ = writeln!(out, "labels{labels}");
+        let _ = writeln!(out, "log_likelihood {}", num(a.ll));
+        let _ = writeln!(out, "labelled {}", num(a.labelled));
+        let _ = writeln!(out, "mpe {}", num(a.mpe));
+        let _ = writeln!(out, "marginals{}", row(&a.marginals.concat()));
+    }
+    out
+}
+
+#[test]
+fn runtime_fixtures_are_what_the_generator_emits() {
+    let update = std::env::var_os("GRAPHSPN_UPDATE_FIXTURES").is_some();
+    let dir = fixture_dir();
+    let mut stale = vec![];
+    for mut f in fixtures() {
+        let files = [
+            (format!("{}.rs", f.name), f.source.clone()),
+            (format!("{}.expected", f.name), expected(&mut f)),
+        ];
+        for (file, text) in files {
+            let path = dir.join(&file);
+            if std::fs::read_to_string(&path).ok().as_deref() == Some(text.as_str()) {
+                continue;
+            }
+            if update {
+                std::fs::create_dir_all(&dir).unwrap();
+                std::fs::write(&path, text).unwrap();
+            } else {
+                stale.push(file);
+            }
+        }
+    }
+    assert!(
+        stale.is_empty(),
+        "runtime fixtures out of date: {stale:?}; rewrite them with\n  \
+         GRAPHSPN_UPDATE_FIXTURES=1 cargo test -p graphspn-compiler --test runtime_fixtures"
+    );
+}
