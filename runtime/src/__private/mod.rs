@@ -525,18 +525,3 @@ pub fn scatter_labels<const N: usize, const K: usize>(
         }
     }
 }
-
-/// Rows `off..off + K` of a scratch array (`None` when out of range).
-#[inline(always)]
-pub fn rows<T, const S: usize, const K: usize>(g: &[T; S], off: usize) -> Option<&[T; K]> {
-    g.get(off..).and_then(|r| r.first_chunk::<K>())
-}
-
-/// Mutable rows `off..off + K` of a scratch array (`None` when out of range).
-#[inline(always)]
-pub fn rows_mut<T, const S: usize, const K: usize>(
-    g: &mut [T; S],
-    off: usize,
-) -> Option<&mut [T; K]> {
-    g.get_mut(off..).and_then(|r| r.first_chunk_mut::<K>())
-}

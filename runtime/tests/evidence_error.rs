@@ -1,0 +1,47 @@
+//! What an [`EvidenceError`] says: what is wrong and where (place id, index, class).
+
+use graphspn_runtime::EvidenceError;
+
+#[test]
+fn every_error_says_what_and_where() {
+    let cases = [
+        (
+            EvidenceError::NotFinite {
+                place: 3,
+                place_id: 17,
+                class: 2,
+            },
+            "evidence for place 17 (index 3), class 2 is not finite (NaN or infinite)",
+        ),
+        (
+            EvidenceError::Negative {
+                place: 4,
+                place_id: 40,
+                class: 1,
+            },
+            "evidence for place 40 (index 4), class 1 is negative",
+        ),
+        (
+            EvidenceError::NoMass {
+                place: 0,
+                place_id: 9,
+            },
+            "evidence for place 9 (index 0) is zero for every class",
+        ),
+        (
+            EvidenceError::ZeroLikelihood,
+            "the evidence has probability zero under the model",
+        ),
+        (
+            EvidenceError::WrongShape {
+                place: 5,
+                expected: 10,
+                found: 9,
+            },
+            "evidence has the wrong shape at place index 5: expected 10, found 9",
+        ),
+    ];
+    for (e, want) in cases {
+        assert_eq!(e.to_string(), want);
+    }
+}
