@@ -14,13 +14,14 @@ mod common;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use common::codegen::{decompose, dense_model_with, map, model, oracle, random_spn, tiny};
+use common::codegen::{decompose, dense_model_with, grid, map, model, oracle, random_spn, tiny};
 use common::instance::tiny_map;
 use common::treemix::random_model;
 use graphspn_compiler::codegen::{
     Arithmetic, CodegenOptions, Precision, Vectorisation, generate, generate_trees_with_report,
 };
 use graphspn_compiler::decompose::Decomposition;
+use graphspn_compiler::instance::ComponentInstance;
 use graphspn_compiler::learn::{DenseParams, Model};
 use graphspn_compiler::map::{ClassId, TopoMap};
 use graphspn_compiler::spn::Mixing;
@@ -56,9 +57,12 @@ struct Answers {
     marginals: Vec<Vec<f64>>,
 }
 
-/// A model family's reference evaluator.
+/// A model family's reference evaluator: brute-force enumeration (GraphSPN on small
+/// maps), the interpreter's component-wise evaluator (GraphSPN on maps too large to
+/// enumerate) or `TreeInstance` (tree mixtures).
 enum Reference {
     Spn(Model, Vec<Decomposition>),
+    Components(Box<ComponentInstance>),
     Trees(Box<TreeInstance>),
 }
 
@@ -75,12 +79,24 @@ impl Reference {
                     marginals: o.marg,
                 }
             }
+            Reference::Components(inst) => {
+                inst.set_all_evidence(e).unwrap();
+                Answers {
+                    ll: inst.log_likelihood().ok().and_then(finite),
+                    labelled: inst
+                        .log_likelihood_labelled(&clamped(labels))
+                        .ok()
+                        .and_then(finite),
+                    mpe: inst
+                        .mpe(&vec![None; e.len()])
+                        .ok()
+                        .and_then(|m| finite(m.log_max_product)),
+                    marginals: inst.marginals().unwrap().probs,
+                }
+            }
             Reference::Trees(inst) => {
                 inst.set_all_evidence(e).unwrap();
-                let fixed: Vec<Option<ClassId>> = labels
-                    .iter()
-                    .map(|&l| (l != u16::MAX).then_some(l))
-                    .collect();
+                let fixed = clamped(labels);
                 Answers {
                     ll: inst.log_likelihood().ok().and_then(finite),
                     labelled: inst.log_likelihood_labelled(&fixed).ok().and_then(finite),
@@ -93,6 +109,14 @@ impl Reference {
             }
         }
     }
+}
+
+/// Labels as clamped places (`u16::MAX`: unknown).
+fn clamped(labels: &[u16]) -> Vec<Option<ClassId>> {
+    labels
+        .iter()
+        .map(|&l| (l != u16::MAX).then_some(l))
+        .collect()
 }
 
 struct Fixture {
@@ -203,12 +227,42 @@ fn layered(classes: usize, zeros: bool, seed: u64) -> (Model, TopoMap, Vec<Decom
     (m, g, decs)
 }
 
+/// Pair and Singleton SPNs of 10 classes (the COLD class count: SIMD code loads rows in
+/// blocks of 8 classes plus a remainder) on a 4 × 3 grid (enough Pair components for
+/// full lane groups), against the component-wise evaluator (`10^12` labellings are too
+/// many to enumerate).
+fn ten_classes_fixture(name: &'static str, seed: u64, opts: CodegenOptions) -> Fixture {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let templates = vec![Template::pair(), Template::singleton()];
+    let spns = templates
+        .iter()
+        .map(|t| random_spn(&mut rng, t.num_nodes, 10, false, false))
+        .collect();
+    let m = model(10, templates, spns);
+    let g = grid(4, 3, 10);
+    let decs: Vec<Decomposition> = (0..3)
+        .map(|s| decompose(&g, &m.templates, seed + s))
+        .collect();
+    let source = generate(&m, &g, &decs, &opts).unwrap();
+    let reference = ComponentInstance::build(&m, &g, decs).unwrap();
+    Fixture {
+        name,
+        source,
+        places: g.num_places(),
+        classes: 10,
+        precision: opts.precision,
+        reference: Reference::Components(Box::new(reference)),
+    }
+}
+
 /// Every fixture: each kind of module the generator emits.
 fn fixtures() -> Vec<Fixture> {
     use Arithmetic::{Fixed, Float};
     use Precision::{F32, F64};
     vec![
         spn_fixture("spn_tiny_simd_f32", tiny(), options(F32, false, Float)),
+        ten_classes_fixture("spn_ten_simd_f32", 31, options(F32, false, Float)),
+        ten_classes_fixture("spn_ten_simd_f64", 32, options(F64, false, Float)),
         spn_fixture(
             "spn_dense_simd_f32",
             dense(2, true, 1, 5),

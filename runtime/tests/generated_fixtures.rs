@@ -34,6 +34,8 @@ macro_rules! fixtures {
 
 fixtures!(
     spn_tiny_simd_f32,
+    spn_ten_simd_f32,
+    spn_ten_simd_f64,
     spn_dense_simd_f32,
     spn_dense_simd_f64,
     spn_dense_scalar_f32,
@@ -204,6 +206,15 @@ where
             M::labelled_log_likelihood(&case.labels, &e),
             case.labelled,
         );
+        // A label past the last class is refused, naming its place.
+        let mut bad = case.labels.clone();
+        bad[n - 1] = c as u16;
+        let refused = Err(EvidenceError::WrongShape {
+            place: n - 1,
+            expected: c,
+            found: c,
+        });
+        assert_eq!(M::labelled_log_likelihood(&bad, &e), refused, "{name}");
         let mut labels = vec![0u16; n];
         ck.log("mpe", M::mpe(&e, &mut labels), case.mpe);
         if case.mpe.is_some() {
@@ -275,6 +286,13 @@ where
         &format!("{how}: labelled"),
         M::state_labelled_log_likelihood(s, &case.labels),
         case.labelled,
+    );
+    let mut bad = case.labels.clone();
+    bad[0] = M::NUM_CLASSES as u16;
+    assert!(
+        M::state_labelled_log_likelihood(s, &bad).is_err(),
+        "{}: {how}: a label past the last class",
+        ck.name
     );
     let mut labels = vec![0u16; n];
     ck.log(

@@ -386,9 +386,3 @@ macro_rules! scalar_lanes {
 
 scalar_lanes!(f32);
 scalar_lanes!(f64);
-
-mod groups;
-mod kernels;
-
-pub use groups::*;
-pub use kernels::*;
