@@ -450,3 +450,62 @@ pub fn sel<T: Real>(r: &mut T, a: &mut [u16; 4], c: T, code: [u16; 4]) {
         *a = code;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `m · 2^k` as an accumulator (`m` in `[1, 2)`, `k` beyond the `f32` range allowed).
+    fn acc(m: f32, k: i32) -> Acc<f32> {
+        let mut a = Acc::ONE;
+        a.mul(m);
+        a.mul_pow2(k);
+        a
+    }
+
+    #[test]
+    fn products_of_zero_are_zero() {
+        assert!(Acc::<f32>::ZERO.is_zero());
+        assert!(!Acc::<f32>::ONE.is_zero());
+        assert!(!acc(1.5, -400).is_zero());
+        let mut a = acc(1.5, 3);
+        a.mul(0.0);
+        assert!(a.is_zero(), "a zero factor");
+        let mut b = acc(1.5, 3);
+        b.mul_log(f32::NEG_INFINITY);
+        assert!(b.is_zero(), "a log factor of −∞");
+        assert_eq!(mix(&[Acc::<f32>::ZERO, a, b]).map(|(l, _)| l), None);
+        assert_eq!(best(&[Acc::<f32>::ZERO, a, b]), None);
+    }
+
+    /// Decompositions whose values lie `2^290` apart, far beyond the `f32` range: the
+    /// weights and `ln Ŝ` come from exponent differences, so nothing overflows.
+    #[test]
+    fn mixing_takes_the_exponents_first() {
+        let accs = [acc(1.5, -300), acc(1.25, -10), acc(1.0, -200), Acc::ZERO];
+        let (l, w) = mix(&accs).unwrap();
+        let want = (1.25f64.ln() - 10.0 * core::f64::consts::LN_2) - 4f64.ln();
+        assert!((f64::from(l) - want).abs() < 1e-6, "{l} vs {want}");
+        assert_eq!(w, [0.0, 1.0, 0.0, 0.0]);
+        assert_eq!(best(&accs), Some(1));
+        // Two comparable values: weights in proportion, `ln` of their mean.
+        let accs = [acc(1.5, -300), acc(1.0, -299)];
+        let (l, w) = mix(&accs).unwrap();
+        let want = (3.5f64.ln() - 300.0 * core::f64::consts::LN_2) - 2f64.ln();
+        assert!((f64::from(l) - want).abs() < 1e-5, "{l} vs {want}");
+        assert!((w[0] - 1.5 / 3.5).abs() < 1e-6 && (w[1] - 2.0 / 3.5).abs() < 1e-6);
+        assert_eq!(best(&accs), Some(1));
+        // Log factors count like the exponents; ties go to the lowest index.
+        let mut a = acc(1.0, 0);
+        a.mul_log(-3.0);
+        let mut b = acc(1.0, 0);
+        b.mul_log(-2.0);
+        assert_eq!(best(&[a, b, b]), Some(1));
+        assert!((f64::from(b.ln_ratio(&a)) - 1.0).abs() < 1e-6);
+        assert!(
+            (f64::from(acc(1.5, -300).ln()) - (1.5f64.ln() - 300.0 * core::f64::consts::LN_2))
+                .abs()
+                < 1e-4
+        );
+    }
+}
