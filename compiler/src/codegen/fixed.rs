@@ -206,6 +206,7 @@ mod tests {
         let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
         let model = crate::learn::Model::load(dir.join("../generated/demo/model.json")).unwrap();
         let mut planned = 0;
+        let mut forward_units = vec![];
         for spn in &model.spns {
             let Some(plan) = crate::codegen::kernels::plan(spn, model.classes.len()) else {
                 continue;
@@ -226,6 +227,7 @@ mod tests {
                 crate::codegen::Precision::F32,
             ));
             assert!(fx.forward_units() > o.entry_units(plan.n) + 1.0);
+            forward_units.push(fx.forward_units());
             // The posterior function's shifted units count each of its shifted vector
             // sums (`sum_shr(&v, k)`: under `2^k` units), read off the emitted code.
             fx.take_shift_units();
@@ -261,6 +263,19 @@ mod tests {
             );
         }
         assert!(planned >= 3);
+        // The value bounds of the demo model's Star, Three, Pair and Singleton, pinned:
+        // they decide which templates keep their fixed-point values, so a change of the
+        // bookkeeping (a sum's or a row's roundings counted differently) must be reviewed.
+        let pinned = [
+            2153.0758157733653,
+            653.7542980912414,
+            120.19915635156629,
+            23.0,
+        ];
+        assert_eq!(forward_units.len(), pinned.len());
+        for (u, p) in forward_units.iter().zip(pinned) {
+            assert!((u - p).abs() <= 1e-9 * p, "forward units {u}, pinned {p}");
+        }
     }
 
     #[test]
