@@ -14,7 +14,9 @@ mod common;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use common::codegen::{decompose, dense_model_with, grid, map, model, oracle, random_spn, tiny};
+use common::codegen::{
+    decompose, dense_model_with, grid, map, model, oracle, random_spn, randomise_weights, tiny,
+};
 use common::instance::tiny_map;
 use common::treemix::random_model;
 use graphspn_compiler::codegen::{
@@ -22,7 +24,7 @@ use graphspn_compiler::codegen::{
 };
 use graphspn_compiler::decompose::Decomposition;
 use graphspn_compiler::instance::ComponentInstance;
-use graphspn_compiler::learn::{DenseParams, Model};
+use graphspn_compiler::learn::{DenseParams, Model, dense_structure, uniform_spn};
 use graphspn_compiler::map::{ClassId, TopoMap};
 use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
@@ -163,6 +165,34 @@ fn tree_fixture(
     }
 }
 
+/// `opts` (SIMD) with the largest stack budget (a multiple of 8 bytes below the
+/// default) that leaves no room for one-pass marginals: the two-pass form (a value pass,
+/// then `posterior_pass` over lane groups) that large maps get.
+fn two_pass(
+    (m, mp, decs): &(Model, TopoMap, Vec<Decomposition>),
+    mut opts: CodegenOptions,
+) -> CodegenOptions {
+    let default = opts.stack_budget();
+    let mut two_pass = |budget: usize| {
+        opts.max_stack_bytes = Some(budget);
+        generate(m, mp, decs, &opts)
+            .ok()
+            .map(|src| src.contains("__private::posterior_pass("))
+    };
+    // Down in steps of 256 bytes while one-pass code still fits, then in steps of 8
+    // through the last step (the two-pass window is narrow on a small map).
+    let mut budget = default;
+    while two_pass(budget - 256) == Some(false) {
+        budget -= 256;
+    }
+    let found = (1..=32)
+        .map(|k| budget - 8 * k)
+        .find(|&b| two_pass(b) == Some(true))
+        .unwrap_or_else(|| panic!("no two-pass budget below {budget}"));
+    opts.max_stack_bytes = Some(found);
+    opts
+}
+
 /// A map around a star with a tail and a triangle: room for Star, Three, Pair and
 /// Singleton components.
 fn star_map(classes: usize) -> TopoMap {
@@ -229,9 +259,8 @@ fn layered(classes: usize, zeros: bool, seed: u64) -> (Model, TopoMap, Vec<Decom
 
 /// Pair and Singleton SPNs of 10 classes (the COLD class count: SIMD code loads rows in
 /// blocks of 8 classes plus a remainder) on a 4 × 3 grid (enough Pair components for
-/// full lane groups), against the component-wise evaluator (`10^12` labellings are too
-/// many to enumerate).
-fn ten_classes_fixture(name: &'static str, seed: u64, opts: CodegenOptions) -> Fixture {
+/// two lane groups).
+fn ten_classes(seed: u64) -> (Model, TopoMap, Vec<Decomposition>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let templates = vec![Template::pair(), Template::singleton()];
     let spns = templates
@@ -240,16 +269,46 @@ fn ten_classes_fixture(name: &'static str, seed: u64, opts: CodegenOptions) -> F
         .collect();
     let m = model(10, templates, spns);
     let g = grid(4, 3, 10);
-    let decs: Vec<Decomposition> = (0..3)
+    let decs = (0..3)
         .map(|s| decompose(&g, &m.templates, seed + s))
         .collect();
-    let source = generate(&m, &g, &decs, &opts).unwrap();
-    let reference = ComponentInstance::build(&m, &g, decs).unwrap();
+    (m, g, decs)
+}
+
+/// Dense Pair SPNs (block structure: SIMD lane groups) and uniform Singletons, 2
+/// classes, on a 4 × 3 grid: more than 8 distinct Pair components, so more than one
+/// lane group.
+fn dense_pairs(seed: u64) -> (Model, TopoMap, Vec<Decomposition>) {
+    let params = DenseParams {
+        sums: 2,
+        ..Default::default()
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut pair = dense_structure(2, 2, &params, seed).unwrap();
+    randomise_weights(&mut pair, &mut rng);
+    let spns = vec![pair, uniform_spn(1, 2).unwrap()];
+    let m = model(2, vec![Template::pair(), Template::singleton()], spns);
+    let g = grid(4, 3, 2);
+    let decs = (0..4)
+        .map(|s| decompose(&g, &m.templates, seed + s))
+        .collect();
+    (m, g, decs)
+}
+
+/// [`spn_fixture`] against the component-wise evaluator, for maps whose labellings are
+/// too many to enumerate.
+fn components_fixture(
+    name: &'static str,
+    (m, mp, decs): (Model, TopoMap, Vec<Decomposition>),
+    opts: CodegenOptions,
+) -> Fixture {
+    let source = generate(&m, &mp, &decs, &opts).unwrap();
+    let reference = ComponentInstance::build(&m, &mp, decs).unwrap();
     Fixture {
         name,
         source,
-        places: g.num_places(),
-        classes: 10,
+        places: mp.num_places(),
+        classes: mp.classes.len(),
         precision: opts.precision,
         reference: Reference::Components(Box::new(reference)),
     }
@@ -261,8 +320,21 @@ fn fixtures() -> Vec<Fixture> {
     use Precision::{F32, F64};
     vec![
         spn_fixture("spn_tiny_simd_f32", tiny(), options(F32, false, Float)),
-        ten_classes_fixture("spn_ten_simd_f32", 31, options(F32, false, Float)),
-        ten_classes_fixture("spn_ten_simd_f64", 32, options(F64, false, Float)),
+        components_fixture(
+            "spn_ten_simd_f32",
+            ten_classes(31),
+            options(F32, false, Float),
+        ),
+        components_fixture(
+            "spn_ten_simd_f64",
+            ten_classes(32),
+            options(F64, false, Float),
+        ),
+        {
+            let inputs = dense_pairs(34);
+            let opts = two_pass(&inputs, options(F32, false, Float));
+            spn_fixture("spn_grid_simd_f32_two_pass", inputs, opts)
+        },
         spn_fixture(
             "spn_dense_simd_f32",
             dense(2, true, 1, 5),

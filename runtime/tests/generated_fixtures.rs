@@ -36,6 +36,7 @@ fixtures!(
     spn_tiny_simd_f32,
     spn_ten_simd_f32,
     spn_ten_simd_f64,
+    spn_grid_simd_f32_two_pass,
     spn_dense_simd_f32,
     spn_dense_simd_f64,
     spn_dense_scalar_f32,

@@ -508,4 +508,17 @@ mod tests {
                 < 1e-4
         );
     }
+
+    /// MPE backtracking's selections keep the first of equal values, as documented:
+    /// ties go to the lowest class (`amax`) and to the earlier candidate (`sel`).
+    #[test]
+    fn selections_keep_the_first_of_equal_values() {
+        assert_eq!(amax(&[0.25f32, 0.5, 0.5, 0.125]), (0.5, 1));
+        assert_eq!(amax(&[0.0f32, -1.0]), (0.0, 0));
+        let (mut r, mut a) = (0.5f32, [1u16; 4]);
+        sel(&mut r, &mut a, 0.5, [2; 4]);
+        assert_eq!((r, a), (0.5, [1; 4]));
+        sel(&mut r, &mut a, 0.75, [3; 4]);
+        assert_eq!((r, a), (0.75, [3; 4]));
+    }
 }
