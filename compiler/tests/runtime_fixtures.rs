@@ -258,8 +258,8 @@ fn layered(classes: usize, zeros: bool, seed: u64) -> (Model, TopoMap, Vec<Decom
 }
 
 /// Pair and Singleton SPNs of 10 classes (the COLD class count: SIMD code loads rows in
-/// blocks of 8 classes plus a remainder) on a 4 × 3 grid (enough Pair components for
-/// two lane groups).
+/// blocks of 8 classes plus a remainder) on a 4 × 3 grid (a full lane group of 8
+/// Singletons).
 fn ten_classes(seed: u64) -> (Model, TopoMap, Vec<Decomposition>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let templates = vec![Template::pair(), Template::singleton()];
@@ -469,6 +469,7 @@ fn runtime_fixtures_are_what_the_generator_emits() {
     let update = std::env::var_os("GRAPHSPN_UPDATE_FIXTURES").is_some();
     let dir = fixture_dir();
     let mut stale = vec![];
+    let mut written = std::collections::BTreeSet::new();
     for mut f in fixtures() {
         let files = [
             (format!("{}.rs", f.name), f.source.clone()),
@@ -476,6 +477,7 @@ fn runtime_fixtures_are_what_the_generator_emits() {
         ];
         for (file, text) in files {
             let path = dir.join(&file);
+            written.insert(file.clone());
             if std::fs::read_to_string(&path).ok().as_deref() == Some(text.as_str()) {
                 continue;
             }
@@ -484,6 +486,17 @@ fn runtime_fixtures_are_what_the_generator_emits() {
                 std::fs::write(&path, text).unwrap();
             } else {
                 stale.push(file);
+            }
+        }
+    }
+    // A file of a fixture no longer generated is stale too (removed by an update).
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        if !written.contains(&name) {
+            if update {
+                std::fs::remove_file(dir.join(&name)).unwrap();
+            } else {
+                stale.push(name);
             }
         }
     }
