@@ -422,6 +422,25 @@ mod tests {
         );
     }
 
+    /// The fast paths answer everywhere their documentation says (a zero operand
+    /// included: rows with exact zeros are common), not only where they are exact.
+    #[test]
+    fn fast_paths_answer_zero_operands() {
+        for v in [1.0f32, 0.75, 3.0e-38, 1.0e38, f32::MAX] {
+            let a = v.to_bits();
+            assert_eq!(mul_bits(a, 0), Some(0), "{v} · 0");
+            assert_eq!(mul_bits(0, a), Some(0), "0 · {v}");
+            assert_eq!(add_bits(a, 0), Some(a), "{v} + 0");
+            assert_eq!(add_bits(0, a), Some(a), "0 + {v}");
+        }
+        assert_eq!(add_bits(0, 0), Some(0));
+        assert_eq!(mul_bits(0, 0), Some(0));
+        // Infinite operands are not theirs.
+        let inf = f32::INFINITY.to_bits();
+        assert_eq!(mul_bits(inf, 0), None);
+        assert_eq!(add_bits(inf, 0), None);
+    }
+
     /// The scalar `f32` lanes' `max`: `o` where `o > self`.
     trait MaxLike {
         fn max_like(self, o: Self) -> Self;
