@@ -28,7 +28,7 @@ use graphspn_compiler::learn::{DenseParams, Model, dense_structure, uniform_spn}
 use graphspn_compiler::map::{ClassId, TopoMap};
 use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
-use graphspn_compiler::treemix::{SpanningTrees, TreeInstance};
+use graphspn_compiler::treemix::{SpanningTrees, TreeInstance, TreeMixture};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -146,13 +146,23 @@ fn spn_fixture(
     }
 }
 
-fn tree_fixture(
+/// Tree-mixture shape: places, classes, forests, evidence exponent, mixing, seed.
+type TreeSpec = (usize, usize, usize, u32, Mixing, u64);
+
+fn tree_fixture(name: &'static str, spec: TreeSpec, opts: CodegenOptions) -> Fixture {
+    tree_fixture_with(name, spec, opts, |_| {})
+}
+
+/// [`tree_fixture`] with the random model changed by `edit` first.
+fn tree_fixture_with(
     name: &'static str,
-    (places, classes, trees, gamma, mixing, seed): (usize, usize, usize, u32, Mixing, u64),
+    (places, classes, trees, gamma, mixing, seed): TreeSpec,
     opts: CodegenOptions,
+    edit: impl Fn(&mut TreeMixture),
 ) -> Fixture {
     let mp = tiny_map(places, classes, seed);
-    let m = random_model(classes, trees, gamma, mixing, seed);
+    let mut m = random_model(classes, trees, gamma, mixing, seed);
+    edit(&mut m);
     let forests = SpanningTrees::covering(&mp, trees, seed).unwrap();
     let (source, _) = generate_trees_with_report(&m, &mp, &forests, &opts).unwrap();
     Fixture {
@@ -389,6 +399,17 @@ fn fixtures() -> Vec<Fixture> {
             "trees_fixed",
             (8, 3, 2, 1, Mixing::Posterior, 25),
             options(F32, true, Fixed),
+        ),
+        // A potential of 2e-6: fixed-point messages would exceed their error bound, so
+        // the no-FPU code keeps them in `SoftF32` floats.
+        tree_fixture_with(
+            "trees_fixed_float_messages",
+            (7, 3, 2, 1, Mixing::Posterior, 26),
+            options(F32, true, Fixed),
+            |m| {
+                m.potential[1] = 2e-6;
+                m.potential[3] = 2e-6;
+            },
         ),
     ]
 }

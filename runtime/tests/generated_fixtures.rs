@@ -48,6 +48,7 @@ fixtures!(
     trees_scalar_f64,
     trees_simd_f64,
     trees_fixed,
+    trees_fixed_float_messages,
 );
 
 /// The scalar types of generated modules.
