@@ -441,6 +441,34 @@ mod tests {
         assert_eq!(add_bits(inf, 0), None);
     }
 
+    /// `SoftF32` is a lane vector of one lane, like the `f32` scalar: every lane
+    /// operation of the trait, and `f32`'s order for negative operands too.
+    #[test]
+    fn soft_f32_is_one_scalar_lane() {
+        let v = SoftF32(0.75);
+        assert_eq!(v.lane(0), 0.75);
+        assert_eq!(v.lane(1), 0.0);
+        let mut w = v;
+        w.set_lane(0, 0.5);
+        w.set_lane(1, 9.0);
+        assert_eq!(w.0, 0.5);
+        assert_eq!(v.to_lanes::<3>(), [0.75, 0.0, 0.0]);
+        assert_eq!(SoftF32::from_lanes(&[0.25f32, 7.0]).0, 0.25);
+        assert_eq!(v.flush(SoftF32(1.0)).0, 0.0, "below the threshold");
+        assert_eq!(v.flush(SoftF32(0.75)).0, 0.75, "at the threshold");
+        assert_eq!(v.mul_add(SoftF32(2.0), SoftF32(0.25)).0, 1.75);
+        assert_eq!((v.hmax(), v.hsum()), (0.75, 0.75));
+        for (a, b) in [
+            (-1.0f32, -2.0),
+            (-2.0, -1.0),
+            (-1.0, 1.0),
+            (1.0, -1.0),
+            (-0.0, 0.0),
+        ] {
+            assert_eq!(greater(a, b), a > b, "{a} > {b}");
+        }
+    }
+
     /// The scalar `f32` lanes' `max`: `o` where `o > self`.
     trait MaxLike {
         fn max_like(self, o: Self) -> Self;
