@@ -127,6 +127,8 @@ struct Fixture {
     places: usize,
     classes: usize,
     precision: Precision,
+    /// The power `γ` the model raises evidence rows to (1 for GraphSPN).
+    evidence_exponent: u32,
     reference: Reference,
 }
 
@@ -142,6 +144,7 @@ fn spn_fixture(
         places: mp.num_places(),
         classes: mp.classes.len(),
         precision: opts.precision,
+        evidence_exponent: 1,
         reference: Reference::Spn(m, decs),
     }
 }
@@ -171,6 +174,7 @@ fn tree_fixture_with(
         places,
         classes,
         precision: opts.precision,
+        evidence_exponent: m.evidence_exponent,
         reference: Reference::Trees(Box::new(TreeInstance::build(&m, &mp, forests).unwrap())),
     }
 }
@@ -320,6 +324,7 @@ fn components_fixture(
         places: mp.num_places(),
         classes: mp.classes.len(),
         precision: opts.precision,
+        evidence_exponent: 1,
         reference: Reference::Components(Box::new(reference)),
     }
 }
@@ -392,7 +397,7 @@ fn fixtures() -> Vec<Fixture> {
         ),
         tree_fixture(
             "trees_simd_f64",
-            (7, 2, 2, 1, Mixing::Posterior, 24),
+            (7, 6, 2, 1, Mixing::Posterior, 24),
             options(F64, false, Float),
         ),
         tree_fixture(
@@ -437,6 +442,12 @@ fn evidence(rng: &mut ChaCha8Rng, n: usize, c: usize, kind: usize) -> Vec<Vec<f6
         .collect()
 }
 
+/// `v · 2^k` in two steps, each exact in `f64` unless the result is subnormal (`2^±1035`
+/// alone is out of range).
+fn times_pow2(v: f64, k: i32) -> f64 {
+    v * 2f64.powi(k / 2) * 2f64.powi(k - k / 2)
+}
+
 /// The fixture's expected-answers file: see `runtime/tests/generated_fixtures.rs`.
 fn expected(f: &mut Fixture) -> String {
     let (n, c) = (f.places, f.classes);
@@ -461,6 +472,20 @@ fn expected(f: &mut Fixture) -> String {
         .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).collect())
         .collect();
     cases.push(product);
+    // Case 7: case 0 scaled by `2^-k`, every entry below the smallest normal value of
+    // the precision. It must answer like its rows scaled back (exactly), its log values
+    // shifted by `-n·γ·k·ln 2`; the reference answers the rows scaled back
+    // (the product of a few such rows leaves even the `f64` range).
+    let k_tiny = match f.precision {
+        Precision::F32 => 135,
+        Precision::F64 => 1035,
+    };
+    let tiny: Vec<Vec<f64>> = cases[0]
+        .iter()
+        .map(|r| r.iter().map(|&v| round(times_pow2(v, -k_tiny))).collect())
+        .collect();
+    let tiny_case = cases.len();
+    cases.push(tiny);
     let mut out = String::new();
     let _ = writeln!(out, "places {n} classes {c}");
     let num = |x: Option<f64>| x.map_or("zero".to_string(), |v| format!("{v:e}"));
@@ -471,7 +496,23 @@ fn expected(f: &mut Fixture) -> String {
                 _ => ((p * 7 + k) % c) as u16,
             })
             .collect();
-        let a = f.reference.answers(e, &labels);
+        let a = if k == tiny_case {
+            let back: Vec<Vec<f64>> = e
+                .iter()
+                .map(|r| r.iter().map(|&v| times_pow2(v, k_tiny)).collect())
+                .collect();
+            let shift = -(n as f64)
+                * f64::from(f.evidence_exponent)
+                * f64::from(k_tiny)
+                * std::f64::consts::LN_2;
+            let mut a = f.reference.answers(&back, &labels);
+            for v in [&mut a.ll, &mut a.labelled, &mut a.mpe] {
+                *v = v.map(|x| x + shift);
+            }
+            a
+        } else {
+            f.reference.answers(e, &labels)
+        };
         let _ = writeln!(out, "case {k}");
         let row = |v: &[f64]| v.iter().map(|x| format!(" {x:e}")).collect::<String>();
         let _ = writeln!(out, "evidence{}", row(&e.concat()));

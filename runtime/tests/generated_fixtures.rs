@@ -6,8 +6,9 @@
 //! runtime's end-to-end test, and it needs no generator: a change to the runtime is
 //! checked in seconds.
 //!
-//! Each `.expected` file holds 7 evidence cases (random, random, exact zeros, tiny
-//! values, uniform, all ones, and case 6 = the product of cases 0 and 1), each with its
+//! Each `.expected` file holds 8 evidence cases (random, random, exact zeros, tiny
+//! values, uniform, all ones, case 6 = the product of cases 0 and 1, and case 7 = case
+//! 0 scaled by `2^-135` in `f32` or `2^-1035` in `f64`: every entry subnormal), each with its
 //! labels and the reference's log-likelihood, labelled log-likelihood, MPE value and
 //! marginals (`zero`: the evidence has zero likelihood).
 

@@ -14,7 +14,16 @@ use super::Acc;
 pub fn log_scale<T: Real, const N: usize, const C: usize>(e: &[[T; C]; N], labels: &[u16; N]) -> T {
     let mut acc = Acc::ONE;
     for (row, &l) in e.iter().zip(labels) {
-        acc.mul(row_scale(row, l));
+        let s = row_scale(row, l);
+        if s.scalable() {
+            acc.mul(s);
+        } else {
+            // A subnormal scale would lose bits in the product (and one in the top
+            // binade could overflow it): its exponent goes in exactly. Zero stays zero.
+            let (m, x) = s.split();
+            acc.mul(m);
+            acc.mul_pow2(x);
+        }
     }
     acc.ln()
 }
@@ -47,6 +56,39 @@ fn row_scale<T: Real, const C: usize>(row: &[T; C], label: u16) -> T {
     }
 }
 
+/// How a row with largest entry `s > 0` is scaled to a largest entry of 1: `(1 / s,
+/// 0)`, applied as `v · (1 / s)`; or, when `1 / s` would leave the normal range (`s`
+/// subnormal, where it overflows, or in the top binade, where it is subnormal), `(1 /
+/// m, e)` for `s = m · 2^e`, applied as `v · 2^-e · (1 / m)` ([`unscale`]). One integer
+/// range check on the common path.
+#[inline(always)]
+fn inverse_scale<T: Real>(s: T) -> (T, i32) {
+    if s.scalable() {
+        (T::ONE / s, 0)
+    } else {
+        split_inverse(s)
+    }
+}
+
+/// [`inverse_scale`] of a scale outside the normal range (out of line: never on the
+/// hot path of real evidence).
+#[cold]
+#[inline(never)]
+fn split_inverse<T: Real>(s: T) -> (T, i32) {
+    let (m, e) = s.split();
+    (T::ONE / m, e)
+}
+
+/// `v · 2^-e · inv`: an entry `v` of a row scaled by [`inverse_scale`]'s `(inv, e)`
+/// (`e ≠ 0`), the power of two in two exact steps (`2^-e` alone can leave the normal
+/// range).
+#[cold]
+#[inline(never)]
+fn unscale<T: Real>(v: T, inv: T, e: i32) -> T {
+    let h = e / 2;
+    v * T::pow2(-h) * T::pow2(h - e) * inv
+}
+
 /// The scaled row of a place (largest entry 1), or the one-hot row of its label.
 #[inline(always)]
 fn scaled_row<T: Real, const C: usize>(row: &[T; C], label: u16) -> [T; C] {
@@ -55,9 +97,9 @@ fn scaled_row<T: Real, const C: usize>(row: &[T; C], label: u16) -> [T; C] {
         *v = T::ONE;
         return x;
     }
-    let inv = T::ONE / row_scale(row, u16::MAX);
+    let (inv, e) = inverse_scale(row_scale(row, u16::MAX));
     for (o, &v) in x.iter_mut().zip(row) {
-        *o = v * inv;
+        *o = if e == 0 { v * inv } else { unscale(v, inv, e) };
     }
     x
 }
@@ -129,8 +171,10 @@ fn gather_scaled<W: Lanes, const L: usize, const NV: usize, const C: usize, cons
 
 /// [`gather`] from the rows as given: each row's scale is computed once per lane and
 /// variable; every vector is then built from its `L` lane values in one step (no
-/// per-lane insertion). Out of line: inlined into every pass it costs microcontrollers
-/// stack and instructions.
+/// per-lane insertion). A row whose largest entry lies outside the normal range (see
+/// [`inverse_scale`]) sends the whole gather to [`gather_exact`] instead, which keeps
+/// the loop below as short as it was without such rows. Out of line: inlined into
+/// every pass it costs microcontrollers stack and instructions.
 #[inline(never)]
 fn gather_raw<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
     e: &[[W::Scalar; C]; N],
@@ -147,6 +191,7 @@ fn gather_raw<W: Lanes, const L: usize, const NV: usize, const C: usize, const N
         Zero,
     }
     let mut src = [[Src::<W::Scalar, C>::Zero; L]; NV];
+    let mut split = false;
     for (l, pl) in p.iter().enumerate() {
         for (sv, &q) in src.iter_mut().zip(pl) {
             let q = usize::from(q);
@@ -159,9 +204,14 @@ fn gather_raw<W: Lanes, const L: usize, const NV: usize, const C: usize, const N
             *o = if lab < C {
                 Src::Label(lab)
             } else {
-                Src::Row(row, W::Scalar::ONE / row_scale(row, u16::MAX))
+                let (inv, ex) = inverse_scale(row_scale(row, u16::MAX));
+                split |= ex != 0;
+                Src::Row(row, inv)
             };
         }
+    }
+    if split {
+        return gather_exact::<W, L, NV, C, N>(e, labels, p, x);
     }
     for (xv, sv) in x.iter_mut().zip(&src) {
         for (c, xc) in xv.iter_mut().enumerate() {
@@ -176,6 +226,37 @@ fn gather_raw<W: Lanes, const L: usize, const NV: usize, const C: usize, const N
             *xc = W::from_lanes(&a);
         }
     }
+}
+
+/// [`gather_raw`] when some row's largest entry lies outside the normal range: every
+/// lane's row scaled by [`scaled_row`] (the same values as the common path and as
+/// [`scale_rows`], bit for bit), then transposed.
+#[cold]
+#[inline(never)]
+fn gather_exact<W: Lanes, const L: usize, const NV: usize, const C: usize, const N: usize>(
+    e: &[[W::Scalar; C]; N],
+    labels: Option<&[u16; N]>,
+    p: &[[u16; NV]; L],
+    x: &mut [[W; C]; NV],
+) {
+    for (v, xv) in x.iter_mut().enumerate() {
+        let mut rows = [[W::Scalar::ZERO; C]; L];
+        for (r, pl) in rows.iter_mut().zip(p) {
+            let q = pl.get(v).map_or(usize::MAX, |&q| usize::from(q));
+            if let Some(row) = e.get(q) {
+                let lab = labels.and_then(|ls| ls.get(q)).copied();
+                scale_into(row, lab.unwrap_or(u16::MAX), r);
+            }
+        }
+        *xv = W::from_rows(&rows.each_ref());
+    }
+}
+
+/// [`scaled_row`] written into `out`; out of line, so that each [`gather_exact`] (one
+/// per template and lane width) stays a short loop around it.
+#[inline(never)]
+fn scale_into<T: Real, const C: usize>(row: &[T; C], label: u16, out: &mut [T; C]) {
+    *out = scaled_row(row, label);
 }
 
 /// Validates every row of evidence with [`check_row`] (the one check of every entry
@@ -265,5 +346,41 @@ mod tests {
         assert!(check_row(&[0.0f32, -0.0, 2.0], 0, 7).is_ok());
         assert!(check_row(&[0.0f32, -1.0, 2.0], 0, 7).is_err());
         assert!(check_row(&[0.0f32, -0.0], 0, 7).is_err());
+    }
+
+    /// Rows whose largest entry is subnormal (where `1 / max` overflows) or in the top
+    /// binade (where it is subnormal) scale like any other, in both precisions.
+    #[test]
+    fn rows_outside_the_normal_range_scale_exactly() {
+        let tiny = f32::from_bits(3); // 3 · 2^-149
+        assert_eq!(
+            scale_row(&[tiny, f32::from_bits(1), 0.0]),
+            [1.0, 1.0 / 3.0, 0.0]
+        );
+        assert_eq!(scale_row(&[f32::MAX / 2.0, f32::MAX]), [0.5, 1.0]);
+        let tiny = f64::from_bits(3);
+        assert_eq!(scale_row(&[f64::from_bits(1), tiny]), [1.0 / 3.0, 1.0]);
+        assert_eq!(scale_row(&[f64::MAX, f64::MAX / 4.0]), [1.0, 0.25]);
+        // The lane gather scales them the same way.
+        let e = [[f32::from_bits(3), f32::from_bits(1)], [f32::MAX, 1.0]];
+        let mut x = [[0.0f32; 2]; 2];
+        gather::<f32, 1, 2, 2, 2>(&e, None, None, &[[0, 1]], &mut x);
+        assert_eq!(x, [[1.0, 1.0 / 3.0], [1.0, 1.0 / f32::MAX]]);
+    }
+
+    /// `log_scale` keeps the exponent of a subnormal scale exactly: with a product
+    /// rounded in the subnormal range, two rows of largest entry `3 · 2^-149` would
+    /// come out as `4 · 2^-149` or `5 · 2^-149`, not `9 · 2^-298`.
+    #[test]
+    fn log_scale_of_subnormal_rows_is_exact() {
+        let t = f32::from_bits(3);
+        let got = log_scale(&[[t, 0.0], [0.0, t]], &[u16::MAX, u16::MAX]);
+        let want = 2.0 * (3f64.ln() - 149.0 * core::f64::consts::LN_2);
+        assert!((f64::from(got) - want).abs() < 1e-4, "{got} {want}");
+        let labelled = log_scale(&[[t, 1.0], [0.0, t]], &[0, 1]);
+        assert!(
+            (f64::from(labelled) - want).abs() < 1e-4,
+            "{labelled} {want}"
+        );
     }
 }

@@ -587,3 +587,18 @@ pub(crate) fn belief<V: Lanes, const K: usize, const N: usize>(
     }
     (b, k)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `argmax` keeps the lowest class on ties, and answers 0 for a zero row, as its
+    /// documentation says (through the API a tie only picks another labelling of the
+    /// same value).
+    #[test]
+    fn argmax_keeps_the_lowest_of_equal_classes() {
+        assert_eq!(argmax::<f32, 4>(&[0.5, 2.0, 2.0, 1.0]), 1);
+        assert_eq!(argmax::<f32, 3>(&[0.0; 3]), 0);
+        assert_eq!(argmax::<f64, 3>(&[0.25, 0.125, 0.5]), 2);
+    }
+}
