@@ -29,6 +29,7 @@ use graphspn_compiler::map::{ClassId, TopoMap};
 use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
 use graphspn_compiler::treemix::{SpanningTrees, TreeInstance, TreeMixture};
+use petgraph::graph::NodeIndex;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -149,6 +150,16 @@ fn spn_fixture(
     }
 }
 
+/// A hub map of `n` places and `c` classes: place 0 joined to every other place.
+fn hub_map(n: usize, c: usize) -> TopoMap {
+    let mut m = tiny_map(n, c, 0);
+    m.graph.clear_edges();
+    for i in 1..n {
+        m.graph.add_edge(NodeIndex::new(0), NodeIndex::new(i), ());
+    }
+    m
+}
+
 /// Tree-mixture shape: places, classes, forests, evidence exponent, mixing, seed.
 type TreeSpec = (usize, usize, usize, u32, Mixing, u64);
 
@@ -159,11 +170,22 @@ fn tree_fixture(name: &'static str, spec: TreeSpec, opts: CodegenOptions) -> Fix
 /// [`tree_fixture`] with the random model changed by `edit` first.
 fn tree_fixture_with(
     name: &'static str,
+    spec: TreeSpec,
+    opts: CodegenOptions,
+    edit: impl Fn(&mut TreeMixture),
+) -> Fixture {
+    let (places, classes, .., seed) = spec;
+    tree_fixture_on(name, tiny_map(places, classes, seed), spec, opts, edit)
+}
+
+/// [`tree_fixture_with`] on the map `mp` (of `spec`'s places and classes).
+fn tree_fixture_on(
+    name: &'static str,
+    mp: TopoMap,
     (places, classes, trees, gamma, mixing, seed): TreeSpec,
     opts: CodegenOptions,
     edit: impl Fn(&mut TreeMixture),
 ) -> Fixture {
-    let mp = tiny_map(places, classes, seed);
     let mut m = random_model(classes, trees, gamma, mixing, seed);
     edit(&mut m);
     let forests = SpanningTrees::covering(&mp, trees, seed).unwrap();
@@ -415,6 +437,16 @@ fn fixtures() -> Vec<Fixture> {
                 m.potential[1] = 2e-6;
                 m.potential[3] = 2e-6;
             },
+        ),
+        // A hub: the centre's belief is the product of 64 messages, whose entries
+        // (about 1/6 each) would leave the `f32` range without a renormalisation after
+        // each factor.
+        tree_fixture_on(
+            "trees_hub_scalar_f32",
+            hub_map(65, 6),
+            (65, 6, 1, 1, Mixing::Average, 27),
+            options(F32, true, Float),
+            |_| {},
         ),
     ]
 }

@@ -50,6 +50,7 @@ fixtures!(
     trees_simd_f64,
     trees_fixed,
     trees_fixed_float_messages,
+    trees_hub_scalar_f32,
 );
 
 /// The scalar types of generated modules.

@@ -441,17 +441,13 @@ pub(crate) fn pack<V: Lanes, const C: usize, const K: usize>(row: &[V::Scalar; C
     out
 }
 
-/// `x · 2^-e` for every entry (two exact steps when `2^-e` alone would leave the
-/// normal range).
+/// `x · 2^-e` for every entry, in two exact steps (`phi` calls it only for a sum
+/// outside [`Real::scalable`]'s range, where `2^-e` alone leaves the normal range).
 #[inline(always)]
 fn scale_pow2<V: Lanes, const K: usize>(x: &mut [V; K], e: i32) {
-    if e.unsigned_abs() > 100 {
-        let h = e / 2;
-        scale(x, V::Scalar::pow2(-h));
-        scale(x, V::Scalar::pow2(h - e));
-    } else {
-        scale(x, V::Scalar::pow2(-e));
-    }
+    let h = e / 2;
+    scale(x, V::Scalar::pow2(-h));
+    scale(x, V::Scalar::pow2(h - e));
 }
 
 /// The evidence factor `φ` of a place (see the module docs) and its exponent: the
