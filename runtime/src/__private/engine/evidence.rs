@@ -43,17 +43,23 @@ const SOFT_FLOAT: bool = !cfg!(any(
 fn row_scale<T: Real, const C: usize>(row: &[T; C], label: u16) -> T {
     match row.get(usize::from(label)) {
         Some(&v) => v,
-        // Without an FPU, integer compares of the magnitudes (the same result for the
-        // values `≥ 0` of checked evidence) instead of soft-float compare calls.
-        None => row.iter().copied().fold(T::ZERO, |a, b| {
-            let larger = if SOFT_FLOAT {
-                b.magnitude_key() > a.magnitude_key()
-            } else {
-                b > a
-            };
-            if larger { b } else { a }
-        }),
+        None => row_max(row, SOFT_FLOAT),
     }
+}
+
+/// The largest value of a checked row (`0` for none): with `integer_compares` (targets
+/// without an FPU) by integer compares of the magnitudes, the same result for values
+/// `≥ 0`, instead of soft-float compare calls.
+#[inline(always)]
+fn row_max<T: Real, const C: usize>(row: &[T; C], integer_compares: bool) -> T {
+    row.iter().copied().fold(T::ZERO, |a, b| {
+        let larger = if integer_compares {
+            b.magnitude_key() > a.magnitude_key()
+        } else {
+            b > a
+        };
+        if larger { b } else { a }
+    })
 }
 
 /// How a row with largest entry `s > 0` is scaled to a largest entry of 1: `(1 / s,
@@ -346,6 +352,23 @@ mod tests {
         assert!(check_row(&[0.0f32, -0.0, 2.0], 0, 7).is_ok());
         assert!(check_row(&[0.0f32, -1.0, 2.0], 0, 7).is_err());
         assert!(check_row(&[0.0f32, -0.0], 0, 7).is_err());
+    }
+
+    /// Both ways of finding a row's largest entry agree, on normal, subnormal and zero
+    /// entries (the integer one runs only on targets without an FPU).
+    #[test]
+    fn row_max_by_integers_is_the_float_maximum() {
+        let rows = [
+            [0.5f32, 2.0, 1.0, 0.0],
+            [f32::from_bits(1), 0.0, f32::from_bits(7), f32::from_bits(3)],
+            [0.0, 0.0, 3.0, 3.0],
+            [f32::MAX, 1.0, f32::MIN_POSITIVE, 0.25],
+        ];
+        for (row, want) in rows.iter().zip([2.0, f32::from_bits(7), 3.0, f32::MAX]) {
+            assert_eq!(row_max(row, true), want, "{row:?}");
+            assert_eq!(row_max(row, false), want, "{row:?}");
+        }
+        assert_eq!(row_max(&[0.125f64, 4.0, 0.5], true), 4.0);
     }
 
     /// Rows whose largest entry is subnormal (where `1 / max` overflows) or in the top

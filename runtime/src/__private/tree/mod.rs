@@ -442,8 +442,10 @@ pub(crate) fn pack<V: Lanes, const C: usize, const K: usize>(row: &[V::Scalar; C
 }
 
 /// `x · 2^-e` for every entry, in two exact steps (`phi` calls it only for a sum
-/// outside [`Real::scalable`]'s range, where `2^-e` alone leaves the normal range).
-#[inline(always)]
+/// outside [`Real::scalable`]'s range, where `2^-e` alone leaves the normal range;
+/// out of line, as such sums are rare).
+#[cold]
+#[inline(never)]
 fn scale_pow2<V: Lanes, const K: usize>(x: &mut [V; K], e: i32) {
     let h = e / 2;
     scale(x, V::Scalar::pow2(-h));
