@@ -308,6 +308,15 @@ pub trait Real:
     /// `2^e`, exact; `e` is clamped to the normal range (`-126..=127` for `f32`,
     /// `-1022..=1023` for `f64`).
     fn pow2(e: i32) -> Self;
+    /// Two normal powers of two whose product is `2^e` (`2^(e/2)` and the rest; exact
+    /// for `|e|` up to twice the normal range): `x · a · b` scales by `2^e` where `2^e`
+    /// alone would leave the normal range (a row whose largest entry is subnormal, or
+    /// in the top binade). The one shared form of that exact two-step scale.
+    #[inline(always)]
+    fn pow2_pair(e: i32) -> (Self, Self) {
+        let h = e / 2;
+        (Self::pow2(h), Self::pow2(e - h))
+    }
     /// Binary exponent of the flush threshold of the tree-mixture driver: on SIMD hosts
     /// entries of a row normalised to a sum in `[1, 2)` that fall below `2^TINY_EXP`
     /// are set to zero (`-80` for `f32`, `-600` for `f64`; see `tree`).
@@ -425,3 +434,26 @@ real_impl!(
     -600,
     -200
 );
+
+#[cfg(test)]
+mod tests {
+    use super::Real;
+
+    /// Each factor of `pow2_pair(e)` is a normal power of two and their exponents add
+    /// up to `e`, over twice the normal range of both types.
+    fn pair_covers<T: Real>(range: core::ops::RangeInclusive<i32>) {
+        for e in range {
+            let (a, b) = T::pow2_pair(e);
+            let ((ma, ea), (mb, eb)) = (a.split(), b.split());
+            assert_eq!((ma, mb), (T::ONE, T::ONE), "2^{e}: {a:?} · {b:?}");
+            assert!(a.scalable() && b.scalable(), "2^{e}: {a:?} · {b:?}");
+            assert_eq!(ea + eb, e, "2^{e}: {a:?} · {b:?}");
+        }
+    }
+
+    #[test]
+    fn pow2_pairs_are_exact_over_twice_the_normal_range() {
+        pair_covers::<f32>(-250..=252);
+        pair_covers::<f64>(-2042..=2044);
+    }
+}

@@ -14,6 +14,7 @@
 
 use core::ops::{Add, AddAssign, Div, Mul};
 
+use super::Real;
 use super::lanes::Lanes;
 use super::tree::{max_message_bits, message_bits};
 
@@ -320,7 +321,8 @@ impl Lanes for SoftF32 {
                 // Zero-or-subnormal input or result: the soft-float multiply, in two
                 // exact steps where `2^-e` alone is not a normal `f32`.
                 *x = SoftF32(if e >= 127 {
-                    slow_mul(slow_mul(x.0, pow2(-64)), pow2(64 - e))
+                    let (a, b) = <f32 as Real>::pow2_pair(-e);
+                    slow_mul(slow_mul(x.0, a), b)
                 } else {
                     slow_mul(x.0, pow2(-e))
                 });

@@ -86,13 +86,12 @@ fn split_inverse<T: Real>(s: T) -> (T, i32) {
 }
 
 /// `v · 2^-e · inv`: an entry `v` of a row scaled by [`inverse_scale`]'s `(inv, e)`
-/// (`e ≠ 0`), the power of two in two exact steps (`2^-e` alone can leave the normal
-/// range).
+/// (`e ≠ 0`), the power of two in two exact steps ([`Real::pow2_pair`]).
 #[cold]
 #[inline(never)]
 fn unscale<T: Real>(v: T, inv: T, e: i32) -> T {
-    let h = e / 2;
-    v * T::pow2(-h) * T::pow2(h - e) * inv
+    let (a, b) = T::pow2_pair(-e);
+    v * a * b * inv
 }
 
 /// The scaled row of a place (largest entry 1), or the one-hot row of its label.

@@ -441,15 +441,15 @@ pub(crate) fn pack<V: Lanes, const C: usize, const K: usize>(row: &[V::Scalar; C
     out
 }
 
-/// `x · 2^-e` for every entry, in two exact steps (`phi` calls it only for a sum
-/// outside [`Real::scalable`]'s range, where `2^-e` alone leaves the normal range).
-/// Inlined: out of line, the call costs Cortex-M4F tree `marginals` 1.9% more
-/// instructions (saved registers in every pass that inlines `phi`).
+/// `x · 2^-e` for every entry, in two exact steps ([`Real::pow2_pair`]; `phi` calls it
+/// only for a sum outside [`Real::scalable`]'s range, where `2^-e` alone leaves the
+/// normal range). Inlined: out of line, the call costs Cortex-M4F tree `marginals` 1.9%
+/// more instructions (saved registers in every pass that inlines `phi`).
 #[inline(always)]
 fn scale_pow2<V: Lanes, const K: usize>(x: &mut [V; K], e: i32) {
-    let h = e / 2;
-    scale(x, V::Scalar::pow2(-h));
-    scale(x, V::Scalar::pow2(h - e));
+    let (a, b) = V::Scalar::pow2_pair(-e);
+    scale(x, a);
+    scale(x, b);
 }
 
 /// The evidence factor `φ` of a place (see the module docs) and its exponent: the
