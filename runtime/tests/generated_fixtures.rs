@@ -250,6 +250,61 @@ where
         check_state::<M>(&ck, &e, case);
     }
     check_streaming::<M>(&ck, &cases);
+    check_bad_rows::<M>(&ck, &cases[0]);
+}
+
+/// A bad row at the last place (a negative entry, a NaN, no mass) is refused by every
+/// stateless entry point and by `set_all`, naming that place and its id; the state
+/// keeps its evidence.
+fn check_bad_rows<M: CompiledMap>(ck: &Checker, case: &Case)
+where
+    M::Scalar: Num,
+{
+    let (n, name) = (M::NUM_PLACES, ck.name);
+    let (place, place_id) = (n - 1, u64::from(M::PLACE_IDS[n - 1]));
+    let good = rows::<M>(&case.evidence);
+    let mut s = M::NEW_STATE;
+    M::set_all(&mut s, &good).unwrap();
+    let before = M::state_log_likelihood(&mut s).unwrap().to_f64();
+    let bads: [(f64, EvidenceError); 3] = [
+        (
+            -1.0,
+            EvidenceError::Negative {
+                place,
+                place_id,
+                class: 0,
+            },
+        ),
+        (
+            f64::NAN,
+            EvidenceError::NotFinite {
+                place,
+                place_id,
+                class: 0,
+            },
+        ),
+        (0.0, EvidenceError::NoMass { place, place_id }),
+    ];
+    for (v, err) in bads {
+        let mut e = good.clone();
+        let row = e[place].as_mut();
+        row.fill(M::Scalar::from_f64(0.0));
+        row[0] = M::Scalar::from_f64(v);
+        let refused = Err(err);
+        assert_eq!(M::log_likelihood(&e), refused, "{name}: log_likelihood");
+        let mut out = vec![M::ZERO_ROW; n];
+        assert_eq!(M::marginals(&e, &mut out), refused, "{name}: marginals");
+        let mut labels = vec![0u16; n];
+        assert_eq!(M::mpe(&e, &mut labels), refused, "{name}: mpe");
+        assert_eq!(
+            M::labelled_log_likelihood(&case.labels, &e),
+            refused,
+            "{name}: labelled_log_likelihood"
+        );
+        assert_eq!(M::set_all(&mut s, &e), Err(err), "{name}: set_all");
+        let after = M::state_log_likelihood(&mut s).unwrap().to_f64();
+        assert_eq!(before, after, "{name}: set_all refused, evidence kept");
+    }
 }
 
 /// A state given the case's evidence by `set_all`, then by `set_evidence` row by row,

@@ -145,18 +145,13 @@ fn pow2(e: i32) -> f32 {
     f32::from_bits(((e + 127) as u32) << 23)
 }
 
-/// Whether both are non-negative (sign bits clear), so their bits order them.
-#[inline(always)]
-fn both_plain(a: u32, b: u32) -> bool {
-    (a | b) >> 31 == 0
-}
-
-/// `a > b` as `f32` compares it (integer compare for non-negative operands; NaN
-/// operands, whose bits are above `+inf`, go through the float compare).
+/// `a > b` as `f32` compares it: an integer compare when both bit patterns are at most
+/// `+inf`'s (non-negative, not NaN: their bits order them); negative and NaN operands,
+/// whose bits lie above, go through the float compare.
 #[inline(always)]
 fn greater(a: f32, b: f32) -> bool {
     let (x, y) = (a.to_bits(), b.to_bits());
-    if both_plain(x, y) && x <= INF && y <= INF {
+    if x.max(y) <= INF {
         x > y
     } else {
         slow_greater(a, b)
