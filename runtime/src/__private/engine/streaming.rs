@@ -540,6 +540,15 @@ mod tests {
         for (p, f) in parts.iter().flatten().zip(fresh.iter().flatten()) {
             assert_eq!((p.m, p.e, p.lg), (f.m, f.e, f.lg));
         }
+        // Components 3 and 16 (chunks 0 and 1): the second is in a new chunk even
+        // though 16 mod 16 is the first one's chunk index.
+        val[3] = 0.25;
+        val[16] = 4.0;
+        update_chunks(&t, &[3u16, 16], 0, &val, &mut parts);
+        chunk_values(&t, &val, &mut fresh);
+        for (p, f) in parts.iter().flatten().zip(fresh.iter().flatten()) {
+            assert_eq!((p.m, p.e, p.lg), (f.m, f.e, f.lg));
+        }
         // Offsets: the same components as global indices 100 + k.
         val[20] = 2.0;
         update_chunks(&t, &[120u32], 100, &val, &mut parts);
@@ -548,6 +557,18 @@ mod tests {
             (parts[1][0].m, parts[1][0].e),
             (fresh[1][0].m, fresh[1][0].e)
         );
+    }
+
+    /// A template's components are the global indices `first .. first + len`: the
+    /// next template's first component is not one of them.
+    #[test]
+    fn local_components_are_the_templates_own() {
+        let (t, _) = pairs_template();
+        assert_eq!(local_component(&t, 10u32, 10), Some(0));
+        assert_eq!(local_component(&t, 14u32, 10), Some(4));
+        assert_eq!(local_component(&t, 15u32, 10), None);
+        assert_eq!(local_component(&t, 9u32, 10), None);
+        assert_eq!(local_component(&t, u16::MAX, 0), None);
     }
 
     /// Four places, three decompositions of two-place components (component 0 is in
