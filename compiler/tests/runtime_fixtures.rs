@@ -150,12 +150,16 @@ fn spn_fixture(
     }
 }
 
-/// A hub map of `n` places and `c` classes: place 0 joined to every other place.
-fn hub_map(n: usize, c: usize) -> TopoMap {
+/// A map of `n` places and `c` classes whose first `hubs` places are each joined to
+/// every other place (one hub: a star; two: shallow trees that differ in which hub each
+/// place hangs from).
+fn hub_map(n: usize, c: usize, hubs: usize) -> TopoMap {
     let mut m = tiny_map(n, c, 0);
     m.graph.clear_edges();
-    for i in 1..n {
-        m.graph.add_edge(NodeIndex::new(0), NodeIndex::new(i), ());
+    for h in 0..hubs {
+        for i in h + 1..n {
+            m.graph.add_edge(NodeIndex::new(h), NodeIndex::new(i), ());
+        }
     }
     m
 }
@@ -443,9 +447,18 @@ fn fixtures() -> Vec<Fixture> {
         // each factor.
         tree_fixture_on(
             "trees_hub_scalar_f32",
-            hub_map(65, 6),
+            hub_map(65, 6, 1),
             (65, 6, 1, 1, Mixing::Average, 27),
             options(F32, true, Float),
+            |_| {},
+        ),
+        // Seven shallow forests on SIMD: four value sweeps side by side, then two, then
+        // one (`parallel_sweeps` = 4 needs four stacks of rows within the places).
+        tree_fixture_on(
+            "trees_two_hubs_simd_f32",
+            hub_map(24, 3, 2),
+            (24, 3, 7, 1, Mixing::Posterior, 28),
+            options(F32, false, Float),
             |_| {},
         ),
     ]

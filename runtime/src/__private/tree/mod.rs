@@ -590,6 +590,21 @@ pub(crate) fn belief<V: Lanes, const K: usize, const N: usize>(
 mod tests {
     use super::*;
 
+    /// The number of value sweeps side by side follows its documented rule (the
+    /// generator's stack bound multiplies by the same number): one in scalar code, else
+    /// four, two or one as their stacks of rows fit within the places.
+    #[test]
+    fn parallel_sweeps_fit_their_rows_within_the_places() {
+        assert_eq!(parallel_sweeps(1, 1000, 5), 1);
+        for (places, rows, p) in [(40, 10, 4), (39, 10, 2), (20, 10, 2), (19, 10, 1)] {
+            assert_eq!(
+                parallel_sweeps(8, places, rows),
+                p,
+                "{places} places, {rows} rows"
+            );
+        }
+    }
+
     /// `argmax` keeps the lowest class on ties, and answers 0 for a zero row, as its
     /// documentation says (through the API a tie only picks another labelling of the
     /// same value).
