@@ -391,6 +391,13 @@ where
 {
     let n = M::NUM_PLACES;
     let mut s = M::NEW_STATE;
+    // A fresh state's evidence is a row of ones at every place.
+    let fresh = M::state_evidence(&s).iter().flat_map(|r| r.as_ref());
+    assert!(
+        fresh.map(|v| v.to_f64()).eq(vec![1.0; n * M::NUM_CLASSES]),
+        "{}: fresh evidence",
+        ck.name
+    );
     M::set_all(&mut s, &rows::<M>(&cases[0].evidence)).unwrap();
     for (p, r) in rows::<M>(&cases[1].evidence).iter().enumerate() {
         M::observe(&mut s, p, r).unwrap();
