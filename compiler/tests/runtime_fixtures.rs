@@ -461,6 +461,21 @@ fn fixtures() -> Vec<Fixture> {
             options(F32, false, Float),
             |_| {},
         ),
+        // Equal neighbours cost 1e-6, so on case 8 (the hubs of classes 0 and 1, every
+        // other place of class 0) a forest's likelihood falls by 13.8 nats for each
+        // place it hangs from hub 0: the forests' values lie farther apart than the
+        // `f32` range, and marginals must mix them relative to the largest.
+        tree_fixture_on(
+            "trees_two_hubs_scalar_f32",
+            hub_map(24, 3, 2),
+            (24, 3, 7, 3, Mixing::Posterior, 29),
+            options(F32, true, Float),
+            |m| {
+                for (i, v) in m.potential.iter_mut().enumerate() {
+                    *v = if i % 4 == 0 { 1e-6 } else { 1.0 };
+                }
+            },
+        ),
     ]
 }
 
@@ -531,6 +546,18 @@ fn expected(f: &mut Fixture) -> String {
         .collect();
     let tiny_case = cases.len();
     cases.push(tiny);
+    // Case 8: sharp rows, place 1 of class 1 and every other place of class 0, the
+    // other entries 1e-30: forests of a tree mixture whose potentials forbid equal
+    // neighbours then have likelihoods hundreds of nats apart (`trees_two_hubs_simd_f32`).
+    let sharp = (0..n)
+        .map(|p| {
+            let class = usize::from(p == 1 && c > 1);
+            (0..c)
+                .map(|k| if k == class { 1.0 } else { round(1e-30) })
+                .collect()
+        })
+        .collect();
+    cases.push(sharp);
     let mut out = String::new();
     let _ = writeln!(out, "places {n} classes {c}");
     let num = |x: Option<f64>| x.map_or("zero".to_string(), |v| format!("{v:e}"));

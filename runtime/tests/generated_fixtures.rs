@@ -52,6 +52,7 @@ fixtures!(
     trees_fixed_float_messages,
     trees_hub_scalar_f32,
     trees_two_hubs_simd_f32,
+    trees_two_hubs_scalar_f32,
 );
 
 /// The scalar types of generated modules.
