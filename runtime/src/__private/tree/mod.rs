@@ -57,6 +57,17 @@
 //! `C = 10` and `n ≤ 1,000`): below one rounding. Exact zeros (evidence of probability
 //! zero) stay exact.
 //!
+//! **Known defect (found 2026-11-28; not fixed).** That bound assumes `R` varies across
+//! the flushed entry's classes by at most one potential ratio. It varies by the product
+//! of the ratios of every factor still to come, up to `2^(20·d)` at a place of degree
+//! `d`, so a flushed class that many neighbours favour can carry most of the value. On
+//! a SIMD host in `f32`, a 24-place map with two hubs (potentials `1e-6` for equal
+//! neighbours, `1` otherwise, `γ = 1`), each hub's evidence ruling two classes out to
+//! `1e-30`, gives a log-likelihood of −132.57 where −102.21 is exact: the entries
+//! below `2^-80` are flushed. Scalar code (microcontrollers) does not flush and answers
+//! such evidence exactly (fixture `trees_two_hubs_scalar_f32`, case 8). A flush that
+//! accounts for the factors still to come, or none, is the fix to build.
+//!
 //! # Passes
 //!
 //! - value (`tree_value` in `pass.rs`): one post-order sweep per forest with a stack of one row per
