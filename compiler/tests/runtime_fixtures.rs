@@ -548,7 +548,7 @@ fn expected(f: &mut Fixture) -> String {
     cases.push(tiny);
     // Case 8: sharp rows, place 1 of class 1 and every other place of class 0, the
     // other entries 1e-30: forests of a tree mixture whose potentials forbid equal
-    // neighbours then have likelihoods hundreds of nats apart (`trees_two_hubs_simd_f32`).
+    // neighbours then have likelihoods hundreds of nats apart (`trees_two_hubs_scalar_f32`).
     let sharp = (0..n)
         .map(|p| {
             let class = usize::from(p == 1 && c > 1);

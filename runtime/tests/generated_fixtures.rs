@@ -6,9 +6,10 @@
 //! runtime's end-to-end test, and it needs no generator: a change to the runtime is
 //! checked in seconds.
 //!
-//! Each `.expected` file holds 8 evidence cases (random, random, exact zeros, tiny
-//! values, uniform, all ones, case 6 = the product of cases 0 and 1, and case 7 = case
-//! 0 scaled by `2^-135` in `f32` or `2^-1035` in `f64`: every entry subnormal), each with its
+//! Each `.expected` file holds 9 evidence cases (random, random, exact zeros, tiny
+//! values, uniform, all ones, case 6 = the product of cases 0 and 1, case 7 = case 0
+//! scaled by `2^-135` in `f32` or `2^-1035` in `f64`: every entry subnormal, and case 8
+//! = sharp rows, `1e-30` off one class), each with its
 //! labels and the reference's log-likelihood, labelled log-likelihood, MPE value and
 //! marginals (`zero`: the evidence has zero likelihood).
 
