@@ -470,13 +470,35 @@ fn fixtures() -> Vec<Fixture> {
             hub_map(24, 3, 2),
             (24, 3, 7, 3, Mixing::Posterior, 29),
             options(F32, true, Float),
-            |m| {
-                for (i, v) in m.potential.iter_mut().enumerate() {
-                    *v = if i % 4 == 0 { 1e-6 } else { 1.0 };
-                }
-            },
+            sharp_potentials,
+        ),
+        // The same potentials with `γ = 1`: on case 8 each hub's evidence puts two
+        // classes `1e-30` (`2^-100`) below its own, and its 22 or 23 neighbours, all of
+        // its own class, overturn that. SIMD hosts once flushed entries below `2^-80`
+        // (log-likelihood -132.57 where -102.21 is exact), and the streaming state's
+        // rows dropped them on every target; both now keep every normal entry.
+        tree_fixture_on(
+            "trees_sharp_hubs_simd_f32",
+            hub_map(24, 3, 2),
+            (24, 3, 7, 1, Mixing::Posterior, 30),
+            options(F32, false, Float),
+            sharp_potentials,
+        ),
+        tree_fixture_on(
+            "trees_sharp_hubs_scalar_f32",
+            hub_map(24, 3, 2),
+            (24, 3, 7, 1, Mixing::Posterior, 30),
+            options(F32, true, Float),
+            sharp_potentials,
         ),
     ]
+}
+
+/// Potentials `1e-6` for equal neighbours and `1` otherwise (3 classes).
+fn sharp_potentials(m: &mut TreeMixture) {
+    for (i, v) in m.potential.iter_mut().enumerate() {
+        *v = if i % 4 == 0 { 1e-6 } else { 1.0 };
+    }
 }
 
 /// Evidence of kind `kind`: random rows, rows with exact zeros, tiny values (scaled far

@@ -24,8 +24,8 @@
 //! `[1, 2)`, exact, with classes below `2^flush` of the best set to 0 (the model family
 //! chooses `flush`: [`Real::PRODUCT_FLUSH_EXP`] for GraphSPN templates, which multiply
 //! up to five evidence entries, so their products stay normal — subnormal products cost
-//! a step 20% on x86 after 10^6 observations; [`Real::TINY_EXP`] for tree mixtures, whose
-//! `φ` flushes at least as much). Such a class changes a place's likelihood by less than
+//! a step 20% on x86 after 10^6 observations; [`Real::MIN_EXP`] for tree mixtures, whose
+//! rows keep every normal entry: see `tree`). Such a class changes a place's likelihood by less than
 //! `C · 2^flush` relatively; it changes a result only where the model's odds for it
 //! exceed `2^-flush` against the evidence. The log-likelihood of the fused evidence
 //! is the inference's log-likelihood of those rows plus [`ln_shift`] (`γ · ln 2 · Σ top`
@@ -226,7 +226,7 @@ mod tests {
         let mut f = Fused::<f32, 3>::ONES;
         let mut want = [0.0f64; 3];
         for _ in 0..5_000 {
-            f = f.observe(&row, f32::TINY_EXP).unwrap().0;
+            f = f.observe(&row, f32::MIN_EXP).unwrap().0;
             for (w, &a) in want.iter_mut().zip(&row) {
                 *w += f64::from(a).ln();
             }
@@ -234,7 +234,7 @@ mod tests {
         for (g, w) in ln_product(&f).iter().zip(&want) {
             assert!((g - w).abs() <= 1e-6 * w.abs(), "{g} vs {w}");
         }
-        let (_, r) = f.observe(&[1.0; 3], f32::TINY_EXP).unwrap();
+        let (_, r) = f.observe(&[1.0; 3], f32::MIN_EXP).unwrap();
         assert!((1.0..2.0).contains(&r[0]), "{r:?}");
         assert_eq!(
             r[1], 0.0,
@@ -246,12 +246,12 @@ mod tests {
     fn a_class_far_behind_recovers_exactly() {
         let mut f = Fused::<f32, 3>::ONES;
         for _ in 0..300 {
-            f = f.observe(&[0.9, 0.011, 0.011], f32::TINY_EXP).unwrap().0;
+            f = f.observe(&[0.9, 0.011, 0.011], f32::MIN_EXP).unwrap().0;
         }
         for _ in 0..400 {
-            f = f.observe(&[0.011, 0.9, 0.011], f32::TINY_EXP).unwrap().0;
+            f = f.observe(&[0.011, 0.9, 0.011], f32::MIN_EXP).unwrap().0;
         }
-        let (_, r) = f.observe(&[1.0; 3], f32::TINY_EXP).unwrap();
+        let (_, r) = f.observe(&[1.0; 3], f32::MIN_EXP).unwrap();
         assert_eq!(r[1].split().1, 0, "class 1 is the best: {r:?}");
         assert_eq!(r[0], 0.0);
         let l = ln_product(&f);
@@ -264,17 +264,17 @@ mod tests {
         let mut f = [Fused::<f32, 3>::ONES; 2];
         f[0] = Fused::of(&[4.0, 2.0, 1.0]);
         assert_eq!(ln_shift(&f, 1), 0.0, "a row kept as given has no shift");
-        let (g, r) = f[0].observe(&[0.25, 0.25, 0.25], f32::TINY_EXP).unwrap();
+        let (g, r) = f[0].observe(&[0.25, 0.25, 0.25], f32::MIN_EXP).unwrap();
         assert_eq!(r, [1.0, 0.5, 0.25]);
         f[0] = g;
         assert_eq!(ln_shift(&f, 1), 0.0, "4 · 0.25 = 1: nothing dropped");
-        let (g, _) = f[1].observe(&[0.125, 0.0, 0.0], f32::TINY_EXP).unwrap();
+        let (g, _) = f[1].observe(&[0.125, 0.0, 0.0], f32::MIN_EXP).unwrap();
         f[1] = g;
         assert!((ln_shift(&f, 1) - 0.125f32.ln()).abs() < 1e-6);
         // Rows entering as `α^3`: three times the dropped scale.
         assert!((ln_shift(&f, 3) - 3.0 * 0.125f32.ln()).abs() < 1e-5);
         assert!(
-            f[1].observe(&[0.0, 1.0, 1.0], f32::TINY_EXP).is_none(),
+            f[1].observe(&[0.0, 1.0, 1.0], f32::MIN_EXP).is_none(),
             "no class left"
         );
     }
@@ -304,7 +304,7 @@ mod tests {
         );
         // The state's kept sum is the fused rows' shifts, as `ln_shift` reads them.
         let mut f = [Fused::<f32, 3>::ONES; 2];
-        f[1] = f[1].observe(&[0.125, 0.0, 0.0], f32::TINY_EXP).unwrap().0;
+        f[1] = f[1].observe(&[0.125, 0.0, 0.0], f32::MIN_EXP).unwrap().0;
         let kept: i64 = f.iter().map(|g| i64::from(g.shift())).sum();
         assert_eq!(shift_sum(&f), kept);
         assert_eq!(ln_scale(&[0.0f32; 2], kept), ln_shift(&f, 1));
@@ -314,7 +314,7 @@ mod tests {
     fn deficits_saturate_towards_recovering_sooner() {
         let mut f = Fused::<f32, 2>::ONES;
         for _ in 0..700 {
-            f = f.observe(&[1.0, 1e-30], f32::TINY_EXP).unwrap().0;
+            f = f.observe(&[1.0, 1e-30], f32::MIN_EXP).unwrap().0;
         }
         assert_eq!(f.deficit[1], u16::MAX);
         assert_eq!(f.top, 0);

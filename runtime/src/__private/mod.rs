@@ -317,11 +317,10 @@ pub trait Real:
     /// computes the pair once, ahead of the loop, and the clamp cost the no-FPU
     /// targets' tree calls 0.4–0.9% more instructions (measured).
     fn pow2_pair(e: i32) -> (Self, Self);
-    /// Binary exponent of the flush threshold of the tree-mixture driver: on SIMD hosts
-    /// entries of a row normalised to a sum in `[1, 2)` that fall below `2^TINY_EXP`
-    /// are set to zero (`-80` for `f32`, `-600` for `f64`; see `tree`).
-    const TINY_EXP: i32;
-    /// Binary exponent of the smallest normal value (`-126` for `f32`, `-1022` for `f64`).
+    /// Binary exponent of the smallest normal value (`-126` for `f32`, `-1022` for
+    /// `f64`); also the tree-mixture driver's flush threshold on SIMD hosts (entries of
+    /// a normalised row below `2^MIN_EXP` set to zero, as a CPU that flushes subnormals
+    /// would; see `tree`).
     const MIN_EXP: i32;
     /// Binary exponent below which a GraphSPN state's fused evidence reads as 0 relative
     /// to the place's best class (`-24` for `f32`, `-200` for `f64`): a template multiplies
@@ -330,9 +329,8 @@ pub trait Real:
 }
 
 macro_rules! real_impl {
-    ($t:ident, $bits:ident, $mant:expr, $ebits:expr, $bias:expr, $emask:expr, $ln:path, $exp:path, $tiny:expr, $product:expr) => {
+    ($t:ident, $bits:ident, $mant:expr, $ebits:expr, $bias:expr, $emask:expr, $ln:path, $exp:path, $product:expr) => {
         impl Real for $t {
-            const TINY_EXP: i32 = $tiny;
             const PRODUCT_FLUSH_EXP: i32 = $product;
             const MIN_EXP: i32 = 1 - $bias;
             #[inline(always)]
@@ -427,19 +425,8 @@ macro_rules! real_impl {
     };
 }
 
-real_impl!(f32, u32, 23, 8, 127, 0xff, libm::logf, libm::expf, -80, -24);
-real_impl!(
-    f64,
-    u64,
-    52,
-    11,
-    1023,
-    0x7ff,
-    libm::log,
-    libm::exp,
-    -600,
-    -200
-);
+real_impl!(f32, u32, 23, 8, 127, 0xff, libm::logf, libm::expf, -24);
+real_impl!(f64, u64, 52, 11, 1023, 0x7ff, libm::log, libm::exp, -200);
 
 #[cfg(test)]
 mod tests {

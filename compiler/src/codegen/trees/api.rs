@@ -125,7 +125,8 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
 
             /// The current evidence rows (all ones where a place has none; a row fused by
             /// `observe` is the product of the place's observations scaled by a power of two,
-            /// largest entry in `[1, 2)`, classes below `2^-80` of it (`f32`) set to 0).
+            /// largest entry in `[1, 2)`, classes below the smallest normal value times it
+            /// set to 0).
             pub fn evidence(&self) -> &Evidence {
                 if self.0.is_ready() { self.0.rows() } else { &NO_EVIDENCE }
             }

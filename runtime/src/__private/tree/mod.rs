@@ -29,44 +29,47 @@
 //! - Evidence: a place's factor is `φ = u ⊙ x^γ` with `x = α / 2^E` (`E` the binary
 //!   exponent of the row's sum, or of its largest entry if the sum overflows: exact),
 //!   or for a labelled place only the label's entry (`x_l = α_l / 2^{E_l}`). On SIMD
-//!   hosts entries of `x` below `2^⌈TINY_EXP/γ⌉` are flushed to 0 before the power, so
-//!   every nonzero `x^γ` is at least `2^TINY_EXP`. `φ`'s largest entry is at least
-//!   `2^-20 · C^-γ ≥ 2^-84`. Scalar code folds `u` into the message matrices instead
-//!   ([`TreeModel::folded`]): `φ = x^γ`, largest entry at least `C^-γ ≥ 2^-64`.
-//! - Messages `ψ·b` need no flush: `ψ > 0` with a largest/smallest ratio of at most
-//!   `1e6 < 2^20` (checked by the model), so every entry of a message is at least
-//!   `2^-20` of its largest, `2^-28` once normalised (`u` folded into a downward
+//!   hosts entries of `x` below `2^⌈(MIN_EXP + 20)/γ⌉` are flushed to 0 before the
+//!   power ([`phi_flush_exp`]), so every nonzero entry of `x^γ` and of `φ` is normal.
+//!   `φ`'s largest entry is at least `2^-20 · C^-γ ≥ 2^-84`. Scalar code folds `u` into
+//!   the message matrices instead ([`TreeModel::folded`]): `φ = x^γ`, largest entry at
+//!   least `C^-γ ≥ 2^-64`.
+//! - Messages `ψ·b` need no flush: `ψ > 0` with a largest/smallest ratio `2^ρ` of at
+//!   most `1e6 < 2^20` (checked by the model), so every entry of a message is at least
+//!   `2^-ρ` of its largest, `2^-(ρ+8)` once normalised (`u` folded into a downward
 //!   message's matrix, also checked at `1e6`, adds its own `2^-20`).
 //! - Beliefs (products of `φ` and messages) are renormalised after every factor, so
 //!   the largest entry of every product formed is at least `2^-113` (a leaf's `φ`
-//!   times a downward message, see `full_below`), inside the normal range. On SIMD hosts entries below `2^TINY_EXP` (`2^-80` in `f32`,
-//!   `2^-600` in `f64`) are flushed to 0 after every factor: nothing ever becomes
-//!   subnormal (an x86 CPU takes ~100 cycles per subnormal operand). Scalar code
-//!   (microcontrollers) does not flush: `C` compares per row cost more there than the
-//!   rest of the row's work, and a Cortex-M FPU handles subnormals in hardware at
+//!   times a downward message, see `full_below`), inside the normal range. On SIMD
+//!   hosts entries below the smallest normal value `2^MIN_EXP` (`2^-126` in `f32`,
+//!   `2^-1022` in `f64`) are flushed to 0 after every factor, as a CPU that flushes
+//!   subnormals would: no subnormal is carried from one row operation to the next (an
+//!   x86 CPU takes ~100 cycles per subnormal operand; a product of a tiny entry and a
+//!   message can still round to a subnormal once, before its flush, which only
+//!   evidence or neighbours that rule a class out by more than `2^90` cause). Scalar
+//!   code (microcontrollers) does not flush: `C` compares per row cost more there than
+//!   the rest of the row's work, and a Cortex-M FPU handles subnormals in hardware at
 //!   full speed (or flushes them to zero when the firmware sets `FPSCR.FZ`; soft-float
-//!   is exact either way). A tiny entry then keeps gradual underflow's absolute error
-//!   of at most `2^-150`, which is a flush to `2^-149` at worst.
+//!   is exact either way). Its tiny entries keep gradual underflow's absolute error of
+//!   at most `2^-150`, a flush below `2^-149` at worst. Both keep every normal entry, so
+//!   SIMD and scalar code answer alike up to rounding (fixtures `trees_sharp_hubs_*`).
 //!
-//! A flushed (or underflowed) entry `b(c)` of a belief at place `v` changes the
-//! forest's value `Σ_c b(c)·R(c)` by at most `C · 2^TINY_EXP · 2^20` relatively (the
-//! belief's largest entry is at least `1/C`, and the rest of the forest, `R`, varies by
-//! at most the potential ratio across classes), so a whole pass over `n` places
-//! changes by at most `4·n·C²·2^(TINY_EXP+20)` relatively (`≤ 2^-26` in `f32` for the
-//! largest maps the generator accepts, `n ≤ 65,535`, `C ≤ 256`, and `≤ 2^-41` for
-//! `C = 10` and `n ≤ 1,000`): below one rounding. Exact zeros (evidence of probability
-//! zero) stay exact.
-//!
-//! **Known defect (found 2026-11-28; not fixed).** That bound assumes `R` varies across
-//! the flushed entry's classes by at most one potential ratio. It varies by the product
-//! of the ratios of every factor still to come, up to `2^(20·d)` at a place of degree
-//! `d`, so a flushed class that many neighbours favour can carry most of the value. On
-//! a SIMD host in `f32`, a 24-place map with two hubs (potentials `1e-6` for equal
-//! neighbours, `1` otherwise, `γ = 1`), each hub's evidence ruling two classes out to
-//! `1e-30`, gives a log-likelihood of −132.57 where −102.21 is exact: the entries
-//! below `2^-80` are flushed. Scalar code (microcontrollers) does not flush and answers
-//! such evidence exactly (fixture `trees_two_hubs_scalar_f32`, case 8). A flush that
-//! accounts for the factors still to come, or none, is the fix to build.
+//! **Error bound.** A belief at place `v` is `φ` times the messages of `v`'s children
+//! (and, in marginals, the downward message), renormalised after each factor. An entry
+//! dropped (flushed, or lost to underflow) when `r` of those factors are still to come
+//! is at most `2^MIN_EXP` of its row's sum; each factor still to come can raise it
+//! against the row's best class by at most its own largest/smallest ratio (`2^ρ`;
+//! `2^(ρ+20)` for a downward message with `u` folded in), and the completed belief's
+//! message `ψ·b` changes by at most `2^ρ` times the share of the belief it lost. So
+//! such an entry changes the forest's value by at most `C · 2^(MIN_EXP + ρ·(r+1))`
+//! relatively, and a pass over `n` places by at most `n` times the largest of those.
+//! In `f32` with the largest potential ratio (`ρ = 20`), `C ≤ 256` and `n ≤ 65,535`
+//! that is below `2^-26` (one rounding) while `r ≤ 2`; with `ρ = 12.3` (the demo
+//! model), `C = 10` and `n ≤ 1,000` while `r ≤ 6`; in `f64` while `r ≤ 46`. Beyond
+//! that, a class whose entry fell below `2^MIN_EXP` of its row can be lost where the
+//! factors still to come favour it by more: this is the range of the precision, the
+//! same on every target (scalar code reaches `2^-149` instead of `2^-126`), not a
+//! flush rule. Exact zeros (evidence of probability zero) stay exact.
 //!
 //! # Passes
 //!
@@ -243,14 +246,15 @@ pub(crate) fn norm<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
     e
 }
 
-/// [`norm`], and on SIMD hosts entries below `2^TINY_EXP` (after scaling) flushed to
-/// zero (see the module docs: scalar code leaves tiny entries to the FPU, whose
-/// subnormal arithmetic costs nothing extra on microcontrollers).
+/// [`norm`], and on SIMD hosts entries below the smallest normal value `2^MIN_EXP`
+/// (after scaling) flushed to zero, as a CPU that flushes subnormals would (see the
+/// module docs: scalar code leaves tiny entries to the FPU, whose subnormal arithmetic
+/// costs nothing extra on microcontrollers).
 #[inline(always)]
 pub(crate) fn norm_flush<V: Lanes, const K: usize>(a: &mut [V; K]) -> i32 {
     let e = norm(a);
     if V::WIDTH > 1 {
-        let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP));
+        let t = V::splat(V::Scalar::pow2(V::Scalar::MIN_EXP));
         for x in a.iter_mut() {
             *x = x.flush(t);
         }
@@ -463,11 +467,21 @@ fn scale_pow2<V: Lanes, const K: usize>(x: &mut [V; K], e: i32) {
     scale(x, b);
 }
 
+/// The binary exponent below which SIMD hosts flush an entry of `x` (a row scaled to a
+/// sum in `[1, 2)`) before `φ = u ⊙ x^γ`: `⌈(MIN_EXP + 20) / γ⌉`, so every nonzero
+/// `x^k` (`k ≤ γ`) and `φ` entry is normal (`u ≥ 2^-20`), and nothing normal that `φ`
+/// could hold is dropped.
+#[inline(always)]
+pub(crate) fn phi_flush_exp<T: Real>(gamma: u32) -> i32 {
+    // Integer division truncates towards zero: the ceiling of a negative quotient.
+    (T::MIN_EXP + 20) / gamma.max(1) as i32
+}
+
 /// The evidence factor `φ` of a place (see the module docs) and its exponent: the
 /// exact factor is `φ · 2^e`. Not normalised: its largest entry lies in
 /// `[2^-20 · C^-γ, 2^γ)` (`x`'s in `[1/C, 2)`, `u`'s in `[2^-20, 1]`; without `u` when
-/// [`TreeModel::folded`]); on SIMD hosts every nonzero entry is at least `2^(TINY_EXP -
-/// 20)`. `label < C` keeps only that class.
+/// [`TreeModel::folded`]); on SIMD hosts every nonzero entry is normal (see
+/// [`phi_flush_exp`]). `label < C` keeps only that class.
 #[inline(always)]
 pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
     m: &TreeModel<V, C, K>,
@@ -503,7 +517,7 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
             }
         };
         if V::WIDTH > 1 {
-            let t = V::splat(V::Scalar::pow2(V::Scalar::TINY_EXP / m.gamma.max(1) as i32));
+            let t = V::splat(V::Scalar::pow2(phi_flush_exp::<V::Scalar>(m.gamma)));
             for v in x.iter_mut() {
                 *v = v.flush(t);
             }
@@ -614,6 +628,24 @@ mod tests {
                 "{places} places, {rows} rows"
             );
         }
+    }
+
+    /// `φ`'s flush on SIMD hosts keeps `x^γ` normal after the unary potential (`≥
+    /// 2^-20`) and drops nothing above that: the threshold is the ceiling of `(MIN_EXP
+    /// + 20) / γ`, in both precisions.
+    #[test]
+    fn phi_flushes_exactly_what_would_leave_the_normal_range() {
+        fn check<T: Real>() {
+            let floor = T::MIN_EXP + 20;
+            for gamma in 1..=8u32 {
+                let t = phi_flush_exp::<T>(gamma);
+                let g = gamma as i32;
+                assert!(t * g >= floor, "γ = {gamma}: 2^{t} to the γ leaves the range");
+                assert!((t - 1) * g < floor, "γ = {gamma}: 2^{} would fit", t - 1);
+            }
+        }
+        check::<f32>();
+        check::<f64>();
     }
 
     /// `argmax` keeps the lowest class on ties, and answers 0 for a zero row, as its

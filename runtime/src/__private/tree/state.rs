@@ -16,8 +16,8 @@
 //! The fused row of a place is the product of its observations, kept exactly by
 //! [`Fused`] (no underflow, no class locked at 0; see its module). The row the inference
 //! uses (and `evidence()` returns) is that product scaled by a power of two (largest
-//! entry in `[1, 2)`, classes below `2^TINY_EXP` of it set to 0, which `φ`'s flush rule
-//! drops anyway), and `log_likelihood` adds the dropped power back: it is the
+//! entry in `[1, 2)`, classes below the smallest normal value `2^MIN_EXP` of it set
+//! to 0: the row holds every class that a normal number can, and no subnormal), and `log_likelihood` adds the dropped power back: it is the
 //! log-likelihood of the product of every observation.
 //!
 //! # Costs
@@ -215,7 +215,7 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
             return Ok(());
         };
         let (fused, fused_row) =
-            old.observe(row, V::Scalar::TINY_EXP)
+            old.observe(row, V::Scalar::MIN_EXP)
                 .ok_or(EvidenceError::NoMass {
                     place,
                     place_id: u64::from(id),
