@@ -27,11 +27,13 @@
 //! a step 20% on x86 after 10^6 observations; [`Real::MIN_EXP`] for tree mixtures, whose
 //! rows keep every normal entry: see `tree`). Such a class changes a place's likelihood by less than
 //! `C · 2^flush` relatively; it changes a result only where the model's odds for it
-//! exceed `2^-flush` against the evidence. The log-likelihood of the fused evidence
+//! exceed `2^-flush` against the evidence. A label is never read as 0 that way: a
+//! labelled place's row enters only through its label's value, which
+//! [`fused_log_scale`] takes exactly from the fused form. The log-likelihood of the fused evidence
 //! is the inference's log-likelihood of those rows plus [`ln_shift`] (`γ · ln 2 · Σ top`
 //! over observed places, for a model that raises rows to the power `γ`).
 
-use super::Real;
+use super::{Real, log_scale_with};
 
 /// Largest deficit of a fused class (see the module docs).
 const MAX_DEFICIT: i32 = u16::MAX as i32;
@@ -53,6 +55,16 @@ pub struct Fused<T, const C: usize> {
 }
 
 impl<T: Real, const C: usize> Fused<T, C> {
+    /// Class `c`'s exact value in the scale of the row [`Fused::observe`] returned, as a
+    /// mantissa and a binary exponent (`mant · 2^-deficit`, normal or not); `None` for
+    /// a class without mass or out of range.
+    pub fn exact(&self, c: usize) -> Option<(T, i32)> {
+        match (self.mant.get(c), self.deficit.get(c)) {
+            (Some(&m), Some(&d)) if m > T::ZERO => Some((m, -i32::from(d))),
+            _ => None,
+        }
+    }
+
     /// All zeros in memory: not yet initialised (a `static` state sits in `.bss`).
     pub const ZERO: Self = Fused {
         mant: [T::ZERO; C],
@@ -160,6 +172,20 @@ fn deficits<T: Real, const C: usize>(mant: &[T; C], ex: &[i32; C], best: i32) ->
 /// exponent: rows enter as `α^power`), lie below the fused evidence's: `power · ln 2 · Σ
 /// shift` over the places (summed exactly in `i64`, one rounding at the end). Added to
 /// the inference's log-likelihood of the stored rows it gives the log-likelihood of the
+/// `ln Π_p s_p` of the streaming state's rows `e` as [`log_scale`] reads it (the
+/// largest value of a row, or its label's value), except that a labelled place whose
+/// row flushed its label to 0 reads the label's exact fused value: a GraphSPN row keeps
+/// classes down to `2^-24` of the best, and a label below that must give its likelihood,
+/// not `ZeroLikelihood`. A labelled place's row enters only through this scale (the
+/// passes read it as one-hot).
+pub fn fused_log_scale<T: Real, const C: usize, const N: usize>(
+    e: &[[T; C]; N],
+    fused: &[Fused<T, C>; N],
+    labels: &[u16; N],
+) -> T {
+    log_scale_with(e, labels, |q, c| fused.get(q).and_then(|f| f.exact(c)))
+}
+
 /// product of every observation.
 pub fn ln_shift<T: Real, const C: usize, const N: usize>(
     fused: &[Fused<T, C>; N],

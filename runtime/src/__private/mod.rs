@@ -242,7 +242,7 @@ mod tree;
 pub use blocks::*;
 pub use engine::*;
 pub use fixed::*;
-pub use fusion::{Fused, ln_scale, ln_shift, shift_ln, shift_sum};
+pub use fusion::{Fused, fused_log_scale, ln_scale, ln_shift, shift_ln, shift_sum};
 pub use lanes::*;
 pub use soft_float::SoftF32;
 pub use tree::*;

@@ -121,9 +121,16 @@ fn likelihood_api(cx: &Context, table: Table) -> TokenStream {
 
         /// Like [`labelled_log_likelihood`], without validating evidence or labels.
         pub fn labelled_log_likelihood_unchecked(labels: &Labels, e: &Evidence) -> Result<#t, ::graphspn_runtime::EvidenceError> {
+            labelled_scaled(labels, e, #rt::log_scale(e, labels))
+        }
+
+        /// The labelled value pass with the log of the rows' scales given (`log_scale`;
+        /// the streaming state gives its labels' exact fused values instead).
+        #[inline(always)]
+        fn labelled_scaled(labels: &Labels, e: &Evidence, scale: #t) -> Result<#t, ::graphspn_runtime::EvidenceError> {
             #table
             let acc = values(e, labels, table, false);
-            finish(&acc, #rt::log_scale(e, labels)).map(|(l, _)| l)
+            finish(&acc, scale).map(|(l, _)| l)
         }
 
         #labelled

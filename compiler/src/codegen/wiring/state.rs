@@ -447,10 +447,13 @@ fn query_methods(tpls: &[Tpl], cx: &Context) -> TokenStream {
 
         /// The log-likelihood of the current evidence with labelled places restricted to
         /// their labels (a full value pass; of the product of every observation, like
-        /// `log_likelihood`).
+        /// `log_likelihood`; a label that a fused row reads as 0, below `2^-24` of the
+        /// place's best class, counts with its exact fused value).
         pub fn labelled_log_likelihood(&mut self, labels: &Labels) -> Result<#t, #err> {
             #rt::check_labels(labels, NUM_CLASSES)?;
-            Ok(labelled_log_likelihood_unchecked(labels, self.evidence())? + #rt::shift_ln::<#t>(self.shift))
+            let e = self.evidence();
+            let scale = #rt::fused_log_scale(e, &self.fused, labels);
+            Ok(labelled_scaled(labels, e, scale)? + #rt::shift_ln::<#t>(self.shift))
         }
     }
 }

@@ -12,10 +12,28 @@ use super::Acc;
 /// an exact power-of-two exponent (one rounding per place, one `ln` in all).
 #[inline]
 pub fn log_scale<T: Real, const N: usize, const C: usize>(e: &[[T; C]; N], labels: &[u16; N]) -> T {
+    log_scale_with(e, labels, |_, _| None)
+}
+
+/// [`log_scale`], where a labelled place whose row reads 0 at its label takes
+/// `exact(place, label)` instead when that is `Some((m, x))`: the value `m · 2^x` in
+/// the row's scale (the streaming state's exact fused value of a class its row
+/// flushed; see `fusion`).
+#[inline(always)]
+pub(crate) fn log_scale_with<T: Real, const N: usize, const C: usize>(
+    e: &[[T; C]; N],
+    labels: &[u16; N],
+    exact: impl Fn(usize, usize) -> Option<(T, i32)>,
+) -> T {
     let mut acc = Acc::ONE;
-    for (row, &l) in e.iter().zip(labels) {
+    for (q, (row, &l)) in e.iter().zip(labels).enumerate() {
         let s = row_scale(row, l);
-        if s.scalable() {
+        if s == T::ZERO
+            && let Some((m, x)) = exact(q, usize::from(l))
+        {
+            acc.mul(m);
+            acc.mul_pow2(x);
+        } else if s.scalable() {
             acc.mul(s);
         } else {
             // A subnormal scale would lose bits in the product (and one in the top

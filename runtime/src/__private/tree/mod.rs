@@ -640,7 +640,10 @@ mod tests {
             for gamma in 1..=8u32 {
                 let t = phi_flush_exp::<T>(gamma);
                 let g = gamma as i32;
-                assert!(t * g >= floor, "γ = {gamma}: 2^{t} to the γ leaves the range");
+                assert!(
+                    t * g >= floor,
+                    "γ = {gamma}: 2^{t} to the γ leaves the range"
+                );
                 assert!((t - 1) * g < floor, "γ = {gamma}: 2^{} would fit", t - 1);
             }
         }
