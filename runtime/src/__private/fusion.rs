@@ -24,14 +24,15 @@
 //! `[1, 2)`, exact, with classes below `2^flush` of the best set to 0 (the model family
 //! chooses `flush`: [`Real::PRODUCT_FLUSH_EXP`] for GraphSPN templates, which multiply
 //! up to five evidence entries, so their products stay normal — subnormal products cost
-//! a step 20% on x86 after 10^6 observations; [`Real::MIN_EXP`] for tree mixtures, whose
-//! rows keep every normal entry: see `tree`). Such a class changes a place's likelihood by less than
-//! `C · 2^flush` relatively; it changes a result only where the model's odds for it
-//! exceed `2^-flush` against the evidence. A label is never read as 0 that way: a
-//! labelled place's row enters only through its label's value, which
-//! [`fused_log_scale`] takes exactly from the fused form. The log-likelihood of the fused evidence
-//! is the inference's log-likelihood of those rows plus [`ln_shift`] (`γ · ln 2 · Σ top`
-//! over observed places, for a model that raises rows to the power `γ`).
+//! a step 20% on x86 after 10^6 observations; [`Real::MIN_EXP`] for tree mixtures,
+//! whose rows keep every normal entry: see `tree`). Such a class changes a place's
+//! likelihood by less than `C · 2^flush` relatively; it changes a result only where the
+//! model's odds for it exceed `2^-flush` against the evidence. A label is never read as
+//! 0 that way: a labelled place's row enters only through its label's value, which
+//! [`fused_log_scale`] takes exactly from the fused form. The log-likelihood of the
+//! fused evidence is the inference's log-likelihood of those rows plus [`ln_shift`]
+//! (`γ · ln 2 · Σ top` over observed places, for a model that raises rows to the power
+//! `γ`).
 
 use super::{Real, log_scale_with};
 
@@ -168,11 +169,7 @@ fn deficits<T: Real, const C: usize>(mant: &[T; C], ex: &[i32; C], best: i32) ->
     d
 }
 
-/// `ln` of the factor by which the stored rows, raised to `power` (a model's evidence
-/// exponent: rows enter as `α^power`), lie below the fused evidence's: `power · ln 2 · Σ
-/// shift` over the places (summed exactly in `i64`, one rounding at the end). Added to
-/// the inference's log-likelihood of the stored rows it gives the log-likelihood of the
-/// `ln Π_p s_p` of the streaming state's rows `e` as [`log_scale`] reads it (the
+/// `ln Π_p s_p` of the streaming state's rows `e` as [`log_scale`](super::log_scale) reads it (the
 /// largest value of a row, or its label's value), except that a labelled place whose
 /// row flushed its label to 0 reads the label's exact fused value: a GraphSPN row keeps
 /// classes down to `2^-24` of the best, and a label below that must give its likelihood,
@@ -186,6 +183,10 @@ pub fn fused_log_scale<T: Real, const C: usize, const N: usize>(
     log_scale_with(e, labels, |q, c| fused.get(q).and_then(|f| f.exact(c)))
 }
 
+/// `ln` of the factor by which the stored rows, raised to `power` (a model's evidence
+/// exponent: rows enter as `α^power`), lie below the fused evidence's: `power · ln 2 · Σ
+/// shift` over the places (summed exactly in `i64`, one rounding at the end). Added to
+/// the inference's log-likelihood of the stored rows it gives the log-likelihood of the
 /// product of every observation.
 pub fn ln_shift<T: Real, const C: usize, const N: usize>(
     fused: &[Fused<T, C>; N],
