@@ -341,7 +341,14 @@ fn tree_generation_refuses_inputs_that_do_not_fit() {
     } = DemoTrees::new("floor.json");
     let others = DemoTrees::new("saarbrucken_seq2_night1.json").forests;
     let options = CodegenOptions::default();
-    assert!(generate_trees_with_report(&model, &floor, &own, &options).is_ok());
+    // `generate_trees` is the module of `generate_trees_with_report`, and an error the
+    // same way.
+    let (module, _) = generate_trees_with_report(&model, &floor, &own, &options).unwrap();
+    assert_eq!(
+        graphspn_compiler::codegen::generate_trees(&model, &floor, &own, &options).unwrap(),
+        module
+    );
+    assert!(graphspn_compiler::codegen::generate_trees(&model, &floor, &others, &options).is_err());
     assert!(generate_trees_with_report(&model, &floor, &others, &options).is_err());
     let mut fewer = floor.clone();
     fewer.classes = ClassSet::new(vec!["a".into(), "b".into()]).unwrap();

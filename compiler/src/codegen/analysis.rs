@@ -399,6 +399,62 @@ mod tests {
         assert!((value / expected - 1.0).abs() < 1e-12 && (max / expected - 1.0).abs() < 1e-12);
     }
 
+    /// Two independent binary variables with sum weights `w` each.
+    fn pair(w: [f64; 2]) -> Spn {
+        let mut nodes = vec![];
+        for var in 0..2 {
+            nodes.push(Node::Leaf { var, class: 0 });
+            nodes.push(Node::Leaf { var, class: 1 });
+        }
+        nodes.push(Node::Sum {
+            children: vec![0, 1],
+            weights: w.to_vec(),
+        });
+        nodes.push(Node::Sum {
+            children: vec![2, 3],
+            weights: w.to_vec(),
+        });
+        nodes.push(Node::Product {
+            children: vec![4, 5],
+        });
+        Spn {
+            classes: vec![2, 2],
+            root: 6,
+            nodes,
+        }
+    }
+
+    /// A template whose weights do not add up to 1 takes log space (its values have no
+    /// bound to scale by); a normalised one is bounded and stays linear.
+    #[test]
+    fn unnormalised_templates_take_log_space() {
+        assert!(normalised(&pair([0.25, 0.75])));
+        assert!(!normalised(&pair([0.5, 0.75])));
+        assert!(matches!(
+            numerics(&pair([0.5, 0.75]), Precision::F32, None),
+            Numerics::Log
+        ));
+        assert!(!matches!(
+            numerics(&pair([0.25, 0.75]), Precision::F32, None),
+            Numerics::Log
+        ));
+    }
+
+    /// `check_spn` refuses a template the shared check refuses, naming the template
+    /// and the node: here a leaf of class 2 where the variables have 2 classes.
+    #[test]
+    fn bad_templates_are_refused_with_template_and_node() {
+        assert!(check_spn(0, &pair([0.25, 0.75]), 2, 2).is_ok());
+        let mut bad = pair([0.25, 0.75]);
+        bad.nodes[1] = Node::Leaf { var: 0, class: 2 };
+        match check_spn(3, &bad, 2, 2) {
+            Err(CodegenError::BadSpn { template, node, .. }) => {
+                assert_eq!((template, node), (3, 1));
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
     /// The block-wise bounds are positive lower bounds of the enumerated minima, and
     /// not far below them.
     #[test]
