@@ -441,6 +441,44 @@ where
         M::clear_evidence(&mut s, p).unwrap();
     }
     state_answers::<M>(ck, "clear_evidence", &mut s, &cases[5]);
+    check_far_label::<M>(ck);
+}
+
+/// A label that a fused row reads as 0 counts with its exact value: place 0 observes a
+/// row whose class 1 lies at `1e-45` (`f32`: the smallest subnormal, below what a
+/// state's row keeps in either family), then a labelled log-likelihood with place 0 of
+/// class 1 must equal the stateless one on the same rows (which reads the label's value
+/// exactly), not `ZeroLikelihood`.
+fn check_far_label<M: CompiledMap>(ck: &Checker)
+where
+    M::Scalar: Num,
+{
+    let n = M::NUM_PLACES;
+    let mut row = M::ZERO_ROW;
+    for (k, v) in row.as_mut().iter_mut().enumerate() {
+        *v = M::Scalar::from_f64(if k == 1 { 1e-45 } else { 1.0 });
+    }
+    let mut e = vec![M::ZERO_ROW; n];
+    for r in e.iter_mut() {
+        r.as_mut()
+            .iter_mut()
+            .for_each(|v| *v = M::Scalar::from_f64(1.0));
+    }
+    e[0] = row;
+    let mut labels = vec![u16::MAX; n];
+    labels[0] = 1;
+    // (`None` where the model rules class 1 out at place 0: both answer
+    // `ZeroLikelihood`.)
+    let want = M::labelled_log_likelihood(&labels, &e)
+        .ok()
+        .map(|w| w.to_f64());
+    let mut s = M::NEW_STATE;
+    M::observe(&mut s, 0, &row).unwrap();
+    ck.log(
+        "a label observed far below its row's best",
+        M::state_labelled_log_likelihood(&mut s, &labels),
+        want,
+    );
 }
 
 #[test]

@@ -182,10 +182,11 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
 
             /// The log-likelihood of the current evidence with labelled places restricted to
             /// their labels (a full value pass; of the product of every observation, like
-            /// `log_likelihood`).
+            /// `log_likelihood`; a label that a fused row reads as 0 counts with its exact
+            /// fused value).
             pub fn labelled_log_likelihood(&mut self, labels: &Labels) -> Result<#t, #err> {
                 #rt::check_labels(labels, NUM_CLASSES)?;
-                Ok(labelled_log_likelihood_unchecked(labels, self.evidence())? + self.0.ln_shift(&MODEL))
+                self.0.labelled_log_likelihood::<H>(&MODEL, labels)
             }
         }
     }

@@ -90,7 +90,7 @@ pub use fixed_messages::*;
 pub use pass::*;
 pub use state::*;
 
-use super::{Lanes, Real, above};
+use super::{Fused, Lanes, Real, above};
 
 /// The "no label" / "no parent" marker of the tables.
 pub const NONE: u16 = u16::MAX;
@@ -490,13 +490,9 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
 ) -> ([V; K], i32) {
     let zero = V::Scalar::ZERO;
     let lab = usize::from(label);
-    let (mut x, e) = if lab < C {
+    let (x, e) = if lab < C {
         let (mant, e) = row.get(lab).copied().unwrap_or(zero).split();
-        let mut one = [zero; C];
-        if let Some(o) = one.get_mut(lab) {
-            *o = mant;
-        }
-        (pack::<V, C, K>(&one), e)
+        (one_hot::<V, C, K>(lab, mant), e)
     } else {
         let mut x = pack::<V, C, K>(row);
         // The sum's exponent (the largest entry's if the sum overflows, or where the
@@ -524,6 +520,39 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
         }
         (x, e)
     };
+    phi_power(m, x, e)
+}
+
+/// `φ` of a labelled place whose label's value is `mant · 2^e` (`label < C`), given
+/// exactly: the streaming state passes a label its fused row reads as 0 this way.
+#[inline(always)]
+pub(crate) fn phi_of_label<V: Lanes, const C: usize, const K: usize>(
+    m: &TreeModel<V, C, K>,
+    label: usize,
+    mant: V::Scalar,
+    e: i32,
+) -> ([V; K], i32) {
+    phi_power(m, one_hot::<V, C, K>(label, mant), e)
+}
+
+/// The row that holds `v` at class `c` and 0 elsewhere.
+#[inline(always)]
+fn one_hot<V: Lanes, const C: usize, const K: usize>(c: usize, v: V::Scalar) -> [V; K] {
+    let mut one = [V::Scalar::ZERO; C];
+    if let Some(o) = one.get_mut(c) {
+        *o = v;
+    }
+    pack::<V, C, K>(&one)
+}
+
+/// `φ = u ⊙ x^γ` (without `u` when folded) of the scaled row `x` with exponent `e`:
+/// the factor and its exponent `γ·e`.
+#[inline(always)]
+fn phi_power<V: Lanes, const C: usize, const K: usize>(
+    m: &TreeModel<V, C, K>,
+    mut x: [V; K],
+    e: i32,
+) -> ([V; K], i32) {
     // `x^γ`, unrolled for the usual exponents (no loop-carried copy of `x`).
     let base = x;
     match m.gamma {
@@ -583,12 +612,41 @@ impl<V: Lanes, const K: usize, const N: usize> Factors<V, K> for Cached<'_, V, K
     }
 }
 
-impl<V: Lanes, const C: usize, const K: usize, const N: usize> Rows<'_, V, C, K, N> {
-    /// Every place's `φ` and exponent into `table` (for [`Cached`]).
-    #[inline(never)]
-    pub fn fill(&self, table: &mut [([V; K], i32); N]) {
-        for (v, t) in table.iter_mut().enumerate() {
-            *t = self.factor(v);
+/// Every place's `φ` and exponent from `src` into `table` (for [`Cached`]).
+#[inline(never)]
+pub(crate) fn fill<V: Lanes, const K: usize, const N: usize>(
+    src: &impl Factors<V, K>,
+    table: &mut [([V; K], i32); N],
+) {
+    for (v, t) in table.iter_mut().enumerate() {
+        *t = src.factor(v);
+    }
+}
+
+/// [`Rows`] of the streaming state with labels, where a label the state's row reads as
+/// 0 (a class fused below the smallest normal value of the best) takes its exact fused
+/// value ([`phi_of_label`]): a labelled place's factor is its label's value alone.
+pub(crate) struct FusedLabels<'a, V: Lanes, const C: usize, const K: usize, const N: usize> {
+    pub rows: Rows<'a, V, C, K, N>,
+    pub fused: &'a [Fused<V::Scalar, C>; N],
+}
+
+impl<V: Lanes, const C: usize, const K: usize, const N: usize> Factors<V, K>
+    for FusedLabels<'_, V, C, K, N>
+{
+    #[inline(always)]
+    fn factor(&self, v: usize) -> ([V; K], i32) {
+        let label = self
+            .rows
+            .labels
+            .and_then(|l| l.get(v))
+            .copied()
+            .unwrap_or(NONE);
+        let lab = usize::from(label);
+        let flushed = self.rows.e.get(v).and_then(|r| r.get(lab)) == Some(&V::Scalar::ZERO);
+        match self.fused.get(v).and_then(|f| f.exact(lab)) {
+            Some((mant, e)) if flushed => phi_of_label(self.rows.m, lab, mant, e),
+            _ => self.rows.factor(v),
         }
     }
 }

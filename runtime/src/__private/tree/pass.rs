@@ -7,7 +7,7 @@
 
 use super::super::{Acc, Lanes, Real, above, best, mix};
 use super::{
-    Cached, Factors, Forest, Rows, TreeModel, argmax, belief, down_message, hmax, hsum,
+    Cached, Factors, Forest, Rows, TreeModel, argmax, belief, down_message, fill, hmax, hsum,
     max_message, mul, mul_norm, pack, up_message,
 };
 use crate::EvidenceError;
@@ -51,7 +51,7 @@ pub(crate) fn with_factors<V: Lanes, const C: usize, const K: usize, const N: us
 ) -> R {
     let rows = Rows { m, e, labels };
     if cache {
-        cached(&rows, body)
+        cached::<V, K, N, R>(&rows, body)
     } else {
         body(&rows)
     }
@@ -59,12 +59,12 @@ pub(crate) fn with_factors<V: Lanes, const C: usize, const K: usize, const N: us
 
 /// [`with_factors`] with the table (its own frame holds it).
 #[inline(never)]
-fn cached<V: Lanes, const C: usize, const K: usize, const N: usize, R>(
-    rows: &Rows<'_, V, C, K, N>,
+pub(crate) fn cached<V: Lanes, const K: usize, const N: usize, R>(
+    src: &impl Factors<V, K>,
     body: impl FnOnce(&dyn Factors<V, K>) -> R,
 ) -> R {
     let mut table = [([V::ZERO; K], 0i32); N];
-    rows.fill(&mut table);
+    fill(src, &mut table);
     body(&Cached { table: &table })
 }
 
@@ -261,7 +261,7 @@ fn tree_values_n<V: Lanes, const C: usize, const K: usize, const H: usize, const
 /// The values of every forest (see [`tree_value`]; on SIMD hosts [`parallel_sweeps`]
 /// at a time, see [`tree_values_n`]).
 #[inline(always)]
-fn values<
+pub(crate) fn values<
     V: Lanes,
     const C: usize,
     const K: usize,
@@ -321,8 +321,14 @@ pub fn tree_log_likelihood<
     let accs = with_factors(m, e, Some(labels), m.cache.values, |src| {
         values::<V, C, K, N, H, T>(m, src, false)
     });
-    match mix(&accs) {
-        Some((l, _)) if l > V::Scalar::NEG_INFINITY => Ok(l),
+    log_of_mix(&accs)
+}
+
+/// `ln` of the mixture of the forests' values, or `ZeroLikelihood`.
+#[inline(always)]
+pub(crate) fn log_of_mix<T: Real, const F: usize>(accs: &[Acc<T>; F]) -> Result<T, EvidenceError> {
+    match mix(accs) {
+        Some((l, _)) if l > T::NEG_INFINITY => Ok(l),
         _ => Err(EvidenceError::ZeroLikelihood),
     }
 }

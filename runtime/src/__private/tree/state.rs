@@ -17,8 +17,11 @@
 //! [`Fused`] (no underflow, no class locked at 0; see its module). The row the inference
 //! uses (and `evidence()` returns) is that product scaled by a power of two (largest
 //! entry in `[1, 2)`, classes below the smallest normal value `2^MIN_EXP` of it set
-//! to 0: the row holds every class that a normal number can, and no subnormal), and `log_likelihood` adds the dropped power back: it is the
-//! log-likelihood of the product of every observation.
+//! to 0: the row holds every class that a normal number can, and no subnormal), and
+//! `log_likelihood` adds the dropped power back: it is the log-likelihood of the
+//! product of every observation. `labelled_log_likelihood` reads a labelled place's
+//! label from the fused form where its row holds 0 ([`FusedLabels`]): a labelled
+//! place's factor is that one value.
 //!
 //! # Costs
 //!
@@ -29,9 +32,10 @@
 
 use super::super::{Acc, Fused, Lanes, Real, check_row, check_rows, mix, shift_ln, shift_sum};
 use super::pass::{
-    add_marginal, full_below, normalise_rows, over_z, tree_downward, tree_upward, with_factors,
+    add_marginal, cached, full_below, log_of_mix, normalise_rows, over_z, tree_downward,
+    tree_upward, values, with_factors,
 };
-use super::{Forest, Rows, TreeModel, belief, hsum, up_message};
+use super::{Forest, FusedLabels, Rows, TreeModel, belief, hsum, up_message};
 use crate::EvidenceError;
 
 /// The caller-owned cache of a compiled tree mixture (see the module docs); all zeros
@@ -300,6 +304,32 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
         } else {
             V::Scalar::ZERO
         }
+    }
+
+    /// `ln S` of the fused observations with every place of `labels` restricted to its
+    /// label (`u16::MAX`: the whole row), by a full value pass over the forests (`H` >
+    /// the height + 1); a label that the state's row reads as 0 (fused below the
+    /// smallest normal value of the best class) counts with its exact fused value.
+    pub fn labelled_log_likelihood<const H: usize>(
+        &mut self,
+        m: &TreeModel<V, C, K>,
+        labels: &[u16; N],
+    ) -> Result<V::Scalar, EvidenceError> {
+        self.fresh(m);
+        let src = FusedLabels {
+            rows: Rows {
+                m,
+                e: &self.rows,
+                labels: Some(labels),
+            },
+            fused: &self.fused,
+        };
+        let accs = if m.cache.values {
+            cached::<V, K, N, _>(&src, |s| values::<V, C, K, N, H, T>(m, s, false))
+        } else {
+            values::<V, C, K, N, H, T>(m, &src, false)
+        };
+        Ok(log_of_mix(&accs)? + self.ln_shift(m))
     }
 
     /// `ln S` of the fused observations, from the cache (`O(T·C)`).
