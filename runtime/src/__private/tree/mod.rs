@@ -490,9 +490,13 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
 ) -> ([V; K], i32) {
     let zero = V::Scalar::ZERO;
     let lab = usize::from(label);
-    let (x, e) = if lab < C {
+    let (mut x, e) = if lab < C {
         let (mant, e) = row.get(lab).copied().unwrap_or(zero).split();
-        (one_hot::<V, C, K>(lab, mant), e)
+        let mut one = [zero; C];
+        if let Some(o) = one.get_mut(lab) {
+            *o = mant;
+        }
+        (pack::<V, C, K>(&one), e)
     } else {
         let mut x = pack::<V, C, K>(row);
         // The sum's exponent (the largest entry's if the sum overflows, or where the
@@ -520,39 +524,6 @@ pub(crate) fn phi<V: Lanes, const C: usize, const K: usize>(
         }
         (x, e)
     };
-    phi_power(m, x, e)
-}
-
-/// `φ` of a labelled place whose label's value is `mant · 2^e` (`label < C`), given
-/// exactly: the streaming state passes a label its fused row reads as 0 this way.
-#[inline(always)]
-pub(crate) fn phi_of_label<V: Lanes, const C: usize, const K: usize>(
-    m: &TreeModel<V, C, K>,
-    label: usize,
-    mant: V::Scalar,
-    e: i32,
-) -> ([V; K], i32) {
-    phi_power(m, one_hot::<V, C, K>(label, mant), e)
-}
-
-/// The row that holds `v` at class `c` and 0 elsewhere.
-#[inline(always)]
-fn one_hot<V: Lanes, const C: usize, const K: usize>(c: usize, v: V::Scalar) -> [V; K] {
-    let mut one = [V::Scalar::ZERO; C];
-    if let Some(o) = one.get_mut(c) {
-        *o = v;
-    }
-    pack::<V, C, K>(&one)
-}
-
-/// `φ = u ⊙ x^γ` (without `u` when folded) of the scaled row `x` with exponent `e`:
-/// the factor and its exponent `γ·e`.
-#[inline(always)]
-fn phi_power<V: Lanes, const C: usize, const K: usize>(
-    m: &TreeModel<V, C, K>,
-    mut x: [V; K],
-    e: i32,
-) -> ([V; K], i32) {
     // `x^γ`, unrolled for the usual exponents (no loop-carried copy of `x`).
     let base = x;
     match m.gamma {
@@ -572,6 +543,24 @@ fn phi_power<V: Lanes, const C: usize, const K: usize>(
         mul(&mut x, &m.unary);
     }
     (x, (m.gamma as i32).wrapping_mul(e))
+}
+
+/// `φ` of a labelled place whose label's value is `mant · 2^e` (`label < C`, `mant`
+/// normal), given exactly: the streaming state passes a label its fused row reads as 0
+/// this way. [`phi`] of the one-hot row of `mant`, its exponent raised by `γ·e`.
+#[inline(always)]
+pub(crate) fn phi_of_label<V: Lanes, const C: usize, const K: usize>(
+    m: &TreeModel<V, C, K>,
+    label: usize,
+    mant: V::Scalar,
+    e: i32,
+) -> ([V; K], i32) {
+    let mut one = [V::Scalar::ZERO; C];
+    if let Some(o) = one.get_mut(label) {
+        *o = mant;
+    }
+    let (x, k) = phi(m, &one, label as u16);
+    (x, k.wrapping_add((m.gamma as i32).wrapping_mul(e)))
 }
 
 /// Where the passes take each place's evidence factor `φ` (and its exponent) from.
