@@ -66,6 +66,18 @@ impl<T: Real, const C: usize> Fused<T, C> {
         }
     }
 
+    /// Class `c`'s exact value ([`Fused::exact`]) when `row`, this place's stored row,
+    /// reads it as 0 (a class fused too far below the best for the row to hold);
+    /// `None` when the row holds it (read the row) or it has no mass. The one rule by
+    /// which a streaming state answers a label its row flushed, in both model families.
+    #[inline(always)]
+    pub fn flushed_label(&self, row: &[T; C], c: usize) -> Option<(T, i32)> {
+        match row.get(c) {
+            Some(&v) if v == T::ZERO => self.exact(c),
+            _ => None,
+        }
+    }
+
     /// All zeros in memory: not yet initialised (a `static` state sits in `.bss`).
     pub const ZERO: Self = Fused {
         mant: [T::ZERO; C],
@@ -180,7 +192,10 @@ pub fn fused_log_scale<T: Real, const C: usize, const N: usize>(
     fused: &[Fused<T, C>; N],
     labels: &[u16; N],
 ) -> T {
-    log_scale_with(e, labels, |q, c| fused.get(q).and_then(|f| f.exact(c)))
+    log_scale_with(e, labels, |q, c| {
+        let row = e.get(q)?;
+        fused.get(q)?.flushed_label(row, c)
+    })
 }
 
 /// `ln` of the factor by which the stored rows, raised to `power` (a model's evidence

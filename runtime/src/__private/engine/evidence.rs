@@ -15,22 +15,20 @@ pub fn log_scale<T: Real, const N: usize, const C: usize>(e: &[[T; C]; N], label
     log_scale_with(e, labels, |_, _| None)
 }
 
-/// [`log_scale`], where a labelled place whose row reads 0 at its label takes
-/// `exact(place, label)` instead when that is `Some((m, x))`: the value `m · 2^x` in
-/// the row's scale (the streaming state's exact fused value of a class its row
-/// flushed; see `fusion`).
+/// [`log_scale`], where a labelled place takes `flushed(place, label)` instead of its
+/// row's value when that is `Some((m, x))`: the value `m · 2^x` in the row's scale (the
+/// streaming state's exact fused value of a label its row reads as 0,
+/// `Fused::flushed_label`).
 #[inline(always)]
 pub(crate) fn log_scale_with<T: Real, const N: usize, const C: usize>(
     e: &[[T; C]; N],
     labels: &[u16; N],
-    exact: impl Fn(usize, usize) -> Option<(T, i32)>,
+    flushed: impl Fn(usize, usize) -> Option<(T, i32)>,
 ) -> T {
     let mut acc = Acc::ONE;
     for (q, (row, &l)) in e.iter().zip(labels).enumerate() {
         let s = row_scale(row, l);
-        if s == T::ZERO
-            && let Some((m, x)) = exact(q, usize::from(l))
-        {
+        if let Some((m, x)) = flushed(q, usize::from(l)) {
             acc.mul(m);
             acc.mul_pow2(x);
         } else if s.scalable() {

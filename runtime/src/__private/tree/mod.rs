@@ -632,10 +632,10 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize> Factors<V, K>
             .copied()
             .unwrap_or(NONE);
         let lab = usize::from(label);
-        let flushed = self.rows.e.get(v).and_then(|r| r.get(lab)) == Some(&V::Scalar::ZERO);
-        match self.fused.get(v).and_then(|f| f.exact(lab)) {
-            Some((mant, e)) if flushed => phi_of_label(self.rows.m, lab, mant, e),
-            _ => self.rows.factor(v),
+        let flushed = self.rows.e.get(v).zip(self.fused.get(v));
+        match flushed.and_then(|(row, f)| f.flushed_label(row, lab)) {
+            Some((mant, e)) => phi_of_label(self.rows.m, lab, mant, e),
+            None => self.rows.factor(v),
         }
     }
 }
