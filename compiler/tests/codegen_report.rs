@@ -159,6 +159,28 @@ fn simd_marginals_take_one_pass_when_the_scratch_fits() {
     );
 }
 
+/// The stack budget is an upper bound: a module whose worst entry point needs exactly
+/// the budget is generated, one byte less is refused with the option named (scalar
+/// code, whose plan does not depend on the budget).
+#[test]
+fn a_stack_budget_equal_to_the_need_is_enough() {
+    let b = builder("floor.json", Vectorisation::Scalar);
+    let (src, report) = generate(&b);
+    let worst = report.worst_stack();
+    let (exact, at_budget) = generate(&b.clone().max_stack_bytes(worst));
+    assert_eq!(exact, src);
+    assert_eq!(at_budget.worst_stack(), worst);
+    let err = b
+        .max_stack_bytes(worst - 1)
+        .report_from(&builder("floor.json", Vectorisation::Scalar).load().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&format!("{worst} bytes")) && err.contains("max_stack_bytes"),
+        "{err}"
+    );
+}
+
 /// SIMD entry points scale every evidence row once per call (`scale_rows`), so their
 /// gathers are loads: the value passes into a table on the stack (counted in their
 /// bounds), one-pass `marginals` into its own output before writing the marginals
