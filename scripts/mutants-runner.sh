@@ -11,7 +11,8 @@
 #     --shard 0/16 --sharding round-robin --list --json --diff > list.json
 #   scripts/mutants-runner.sh list.json OUT_DIR -- cargo test --test generated_state
 #
-# OUT_DIR gets results.txt (one line per mutant: index, CAUGHT / MISSED / UNVIABLE,
+# OUT_DIR gets results.txt (one line per mutant: index, CAUGHT / MISSED / UNVIABLE (the
+# mutated crate does not compile; generated code that does not compile is CAUGHT),
 # place, what changed, seconds) and each mutant's test log; a re-run skips the
 # mutants already in results.txt. The scratch clone is OUT_DIR/tree (from the
 # current commit of this checkout; its target directory is reused between mutants).
@@ -39,6 +40,13 @@ touch "$results"
 
 run() { (cd "$tree" && timeout "$timeout_s" "$@"); }
 
+# The package of a source file: its folder's Cargo.toml name (the root crate's for src/).
+package_of() {
+    local dir=${1%%/*}
+    [[ $dir == src ]] && dir=.
+    sed -n 's/^name = "\(.*\)"/\1/p' "$tree/$dir/Cargo.toml" | head -1
+}
+
 if ! grep -q '^baseline ' "$results"; then
     start=$SECONDS
     if ! run "$@" >"$out/baseline.log" 2>&1; then
@@ -60,7 +68,9 @@ for ((i = 0; i < count; i++)); do
         verdict=NOPATCH
     elif run "$@" >"$out/$i.log" 2>&1; then
         verdict=MISSED
-    elif grep -qE '^error\[E[0-9]+\]|^error: could not compile' "$out/$i.log"; then
+    elif grep -q "^error: could not compile \`$(package_of "$file")\` (lib" "$out/$i.log"; then
+        # The mutated crate itself does not compile. Generated code that does not
+        # compile (a fixture, graphspn-generated) is a caught mutant.
         verdict=UNVIABLE
     else
         verdict=CAUGHT
