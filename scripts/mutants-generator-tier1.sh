@@ -18,5 +18,5 @@ if ! git diff --quiet -- runtime/tests/fixtures; then
     git diff --stat -- runtime/tests/fixtures
     cargo test -q -p graphspn-runtime --test generated_fixtures
 fi
-cargo test -q -p graphspn-compiler --test codegen_report --test treemix_exact
+cargo test -q -p graphspn-compiler --test codegen_report --test treemix_exact --test builder_errors
 cargo test -q -p graphspn-compiler --lib

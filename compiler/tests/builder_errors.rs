@@ -3,12 +3,12 @@
 
 use std::path::PathBuf;
 
-use graphspn::codegen::{BuildError, Builder};
-use graphspn::learn::Model;
-use graphspn::map::{ClassSet, TopoMap};
+use graphspn_compiler::codegen::{BuildError, Builder};
+use graphspn_compiler::learn::Model;
+use graphspn_compiler::map::{ClassSet, TopoMap};
 
 fn demo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("generated/demo")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo")
 }
 
 #[test]
@@ -101,7 +101,7 @@ fn a_keyword_is_not_a_module_name() {
         assert!(matches!(err, BuildError::BadOption(_)), "{name}: {err}");
     }
     for name in ["floor", "r#fn_map", "_floor", "fn_map"] {
-        let ok = graphspn::codegen::check_module_name(name);
+        let ok = graphspn_compiler::codegen::check_module_name(name);
         assert_eq!(ok.is_ok(), name != "r#fn_map", "{name}: {ok:?}");
     }
     assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none());
@@ -122,7 +122,7 @@ fn run_never_replaces_a_file_it_did_not_write_unless_allowed() {
     assert!(err.to_string().contains("floor.rs"), "{err}");
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "// hand-written\n");
     b.overwrite(true).run().unwrap();
-    assert!(graphspn::codegen::is_generated_file(
+    assert!(graphspn_compiler::codegen::is_generated_file(
         &std::fs::read_to_string(&out).unwrap()
     ));
 }
@@ -195,7 +195,7 @@ fn tree_mixture_models_compile_through_the_builder() {
     );
     // The stack budget is enforced as for GraphSPNs.
     let err = Builder::new(&trees, demo().join("saarbrucken_seq2_night1.json"))
-        .vectorisation(graphspn::codegen::Vectorisation::Scalar)
+        .vectorisation(graphspn_compiler::codegen::Vectorisation::Scalar)
         .max_stack_bytes(4096)
         .generate()
         .unwrap_err();
