@@ -278,6 +278,24 @@ mod tests {
         }
     }
 
+    /// A value is kept at `E·2^(REL_BITS − 32)`; a posterior function's result at the
+    /// larger of its own `E·2^(POST_BITS − 32)` and the value's threshold halved (its
+    /// value, from the same sweep, within `2^(1 − REL_BITS)` of itself); saturating.
+    #[test]
+    fn thresholds_are_the_documented_error_multiples() {
+        let value = |t: &Literal| t.to_string().parse::<u64>().unwrap();
+        let (fwd, post) = thresholds(1000, 10);
+        assert_eq!(value(&fwd), 1000 << REL_BITS);
+        assert_eq!(value(&post), 1000 << (REL_BITS - 1));
+        let (fwd, post) = thresholds(10, 100_000);
+        assert_eq!(value(&fwd), 10 << REL_BITS);
+        assert_eq!(value(&post), 100_000 << POST_BITS);
+        let (fwd, post) = thresholds(1 << 20, 1);
+        assert_eq!(value(&fwd), u64::from(u32::MAX));
+        assert_eq!(value(&post), u64::from(u32::MAX));
+        assert_eq!(error_units(3, 5, 7), 2 * 3 + 5 + 7);
+    }
+
     #[test]
     fn sums_get_enough_integer_bits() {
         assert_eq!(sum_bits(1), 0);
