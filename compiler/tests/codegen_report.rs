@@ -1,6 +1,8 @@
 //! The generator's report (`CodeReport`) on the shipped demo maps: the figures the
 //! README quotes and the layout properties they rest on.
 
+mod common;
+
 use std::path::PathBuf;
 
 use graphspn_compiler::codegen::{
@@ -179,6 +181,23 @@ fn a_stack_budget_equal_to_the_need_is_enough() {
         err.contains(&format!("{worst} bytes")) && err.contains("max_stack_bytes"),
         "{err}"
     );
+}
+
+/// Scalar (microcontroller) code takes a value pass and a posterior pass whatever the
+/// stack budget: one component at a time, one-pass marginals would keep every
+/// component's posteriors on the stack for nothing.
+#[test]
+fn scalar_marginals_take_two_passes_under_any_budget() {
+    let b = builder("floor.json", Vectorisation::Scalar);
+    let (src, report) = generate(&b.clone().max_stack_bytes(1 << 30));
+    let body = marginals_body(&src);
+    assert!(
+        body.contains("posterior_pass") && !body.contains("eval_group"),
+        "{body}"
+    );
+    let (default_src, default_report) = generate(&b);
+    assert!(src == default_src, "the budget changed the scalar module");
+    assert_eq!(report, default_report);
 }
 
 /// SIMD entry points scale every evidence row once per call (`scale_rows`), so their
@@ -439,6 +458,44 @@ fn demo_floor_report_figures_are_pinned() {
     // A 6,400-byte budget keeps the factor table off every scalar tree entry point.
     let small = trees(Vectorisation::Scalar, Some(6400));
     figures += &format!("tree mixture Scalar, 6,400-byte budget: {small:#?}\n");
+    insta::assert_snapshot!(figures);
+}
+
+/// The report of a module whose templates are compiled node by node (random layered
+/// SPNs, linear and log space), pinned like the demo floor's: their stack bounds come
+/// from the node count (a value and an adjoint per node, plus spills), not from a plan.
+#[test]
+fn per_node_report_figures_are_pinned() {
+    use common::codegen::{decompose, map, model, random_spn};
+    use graphspn_compiler::codegen::generate_with_report;
+    use graphspn_compiler::template::Template;
+    use rand::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let templates = vec![Template::three(), Template::pair(), Template::singleton()];
+    let mut figures = String::new();
+    // Unnormalised weights with exact zeros take log space.
+    for log in [false, true] {
+        let spns = templates
+            .iter()
+            .map(|t| random_spn(&mut rng, t.num_nodes, 3, log, log))
+            .collect();
+        let m = model(3, templates.clone(), spns);
+        let g = map(5, 3, &[(0, 1), (1, 2), (2, 3), (3, 4), (1, 3)]);
+        let decs: Vec<_> = (0..2).map(|s| decompose(&g, &m.templates, s)).collect();
+        for v in [Vectorisation::Scalar, Vectorisation::Simd] {
+            let options = CodegenOptions {
+                vectorisation: v,
+                ..Default::default()
+            };
+            let (src, report) = generate_with_report(&m, &g, &decs, &options).unwrap();
+            assert!(
+                src.contains("let n0 = "),
+                "the Three is compiled node by node"
+            );
+            assert_eq!(src.contains("ln_rows"), log);
+            figures += &format!("log space {log}, {v:?}: {report:#?}\n");
+        }
+    }
     insta::assert_snapshot!(figures);
 }
 
