@@ -184,3 +184,22 @@ where
 pub fn int_array<I: IntoIterator<Item = usize>>(items: I) -> TokenStream {
     array(items.into_iter().map(int))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Infinities keep their sign (`ln` of a zero weight is `-∞`); finite values keep
+    /// their digits, negative ones as a `-` token.
+    #[test]
+    fn literals_keep_signs_and_infinities() {
+        for (precision, ty) in [(Precision::F32, "f32"), (Precision::F64, "f64")] {
+            let l = Lit::new(precision);
+            let text = |v: f64| l.num(v).to_string().replace(' ', "");
+            assert_eq!(text(f64::INFINITY), format!("{ty}::INFINITY"));
+            assert_eq!(text(f64::NEG_INFINITY), format!("{ty}::NEG_INFINITY"));
+            assert_eq!(text(0.25), format!("0.25{ty}"));
+            assert_eq!(text(-0.25), format!("-0.25{ty}"));
+        }
+    }
+}
