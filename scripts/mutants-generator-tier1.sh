@@ -5,7 +5,7 @@
 # answers by the runtime's own test (a mutant that emits wrong code fails there; when
 # the text is unchanged that test is the baseline's and is skipped); then the
 # compiler's fast codegen tests and its unit tests. Survivors go on to the slower
-# codegen_e2e tests. Each step builds incrementally: a mutant costs about 10-60 s.
+# codegen_e2e tests. Each step builds incrementally: a mutant costs about 5-130 s.
 #
 #   cargo mutants -p graphspn-compiler -f 'compiler/src/codegen/**/*.rs' \
 #     --list --json --diff > gen.json
