@@ -517,3 +517,45 @@ fn a_decompositions_file_gives_the_module_of_its_decompositions() {
     assert!(from_file.0 == given.0, "the file's module differs");
     assert_eq!(from_file.1, given.1);
 }
+
+/// A block template row with an exact-zero weight has floor 0: its floor term is left
+/// out (no multiply by zero in the code, none counted), while the template stays in
+/// linear space because the other rows of its block cover that tuple.
+#[test]
+fn an_exact_zero_weight_leaves_its_floor_term_out() {
+    use common::codegen::{decompose, dense_model, map};
+    use graphspn_compiler::codegen::generate_with_report;
+    use graphspn_compiler::spn::Node;
+    let mut m = dense_model(3, false, 1, 7);
+    let star = m.templates.iter().position(|t| t.num_nodes == 5).unwrap();
+    // The Star's first sum mixes products of two variables' leaves: a lower block.
+    let spn = &mut m.spns[star];
+    let first = spn.nodes.iter().position(|n| matches!(n, Node::Sum { .. }));
+    let Some(Node::Sum { weights, .. }) = first.map(|i| &mut spn.nodes[i]) else {
+        panic!("the Star has a sum")
+    };
+    weights[0] = 0.0;
+    let total: f64 = weights.iter().sum();
+    weights.iter_mut().for_each(|w| *w /= total);
+    let g = map(6, 3, &[(0, 1), (0, 2), (0, 3), (0, 4), (4, 5)]);
+    let decs: Vec<_> = (0..2).map(|s| decompose(&g, &m.templates, s)).collect();
+    // Multiply-adds of a pass (scalar) or of a lane group (SIMD); with all weights
+    // positive the scalar pass counts 1984.
+    for (v, macs) in [(Vectorisation::Scalar, 1978), (Vectorisation::Simd, 734)] {
+        let options = CodegenOptions {
+            vectorisation: v,
+            ..Default::default()
+        };
+        let (src, report) = generate_with_report(&m, &g, &decs, &options).unwrap();
+        assert!(!src.contains("ln_rows"), "{v:?}: the Star stays linear");
+        assert!(
+            !src.contains("let n0 = "),
+            "{v:?}: the Star is a block template"
+        );
+        assert!(
+            !src.contains("* V::splat(0.0f32)"),
+            "{v:?}: a multiply by zero"
+        );
+        assert_eq!(report.macs_marginals, macs, "{v:?}");
+    }
+}
