@@ -549,17 +549,28 @@ impl Builder {
         Ok(AnyInputs::TreeMixture(TreeInputs { model, map, trees }))
     }
 
+    /// The options for the target Cargo builds for (`CARGO_CFG_TARGET_ARCH` and
+    /// `TARGET`, set in a build script; see [`Builder::options_for`]).
     fn options(&self) -> CodegenOptions {
-        let vectorisation = self.vectorisation.unwrap_or_else(|| {
-            std::env::var("CARGO_CFG_TARGET_ARCH")
-                .map_or(Vectorisation::Simd, |a| Vectorisation::for_arch(&a))
-        });
-        let arithmetic = self.arithmetic.unwrap_or_else(|| {
-            match (vectorisation, self.precision, std::env::var("TARGET")) {
-                (Vectorisation::Scalar, Precision::F32, Ok(t)) => Arithmetic::for_target(&t),
-                _ => Arithmetic::Float,
-            }
-        });
+        let arch = std::env::var("CARGO_CFG_TARGET_ARCH").ok();
+        let target = std::env::var("TARGET").ok();
+        self.options_for(arch.as_deref(), target.as_deref())
+    }
+
+    /// The options for a target given as Cargo's `arch` (`CARGO_CFG_TARGET_ARCH`) and
+    /// triple (`TARGET`); `None` outside a build script. What the builder was told
+    /// wins; else SIMD or scalar code by the architecture (SIMD when unknown), and
+    /// fixed point for `f32` scalar code on a target without an FPU.
+    fn options_for(&self, arch: Option<&str>, target: Option<&str>) -> CodegenOptions {
+        let vectorisation = self
+            .vectorisation
+            .unwrap_or_else(|| arch.map_or(Vectorisation::Simd, Vectorisation::for_arch));
+        let arithmetic =
+            self.arithmetic
+                .unwrap_or_else(|| match (vectorisation, self.precision, target) {
+                    (Vectorisation::Scalar, Precision::F32, Some(t)) => Arithmetic::for_target(t),
+                    _ => Arithmetic::Float,
+                });
         CodegenOptions {
             precision: self.precision,
             vectorisation,
@@ -708,4 +719,52 @@ pub fn write_if_changed(path: &Path, text: &str) -> Result<(), BuildError> {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
     }
     std::fs::write(path, text).map_err(io(path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use Arithmetic::{Fixed, Float};
+    use Vectorisation::{Scalar, Simd};
+
+    /// A build script's target picks the vectorisation and the arithmetic: SIMD on
+    /// x86-64 (and outside a build script), scalar `f32` on microcontrollers, fixed
+    /// point on those without an FPU; what the builder is told wins.
+    #[test]
+    fn the_target_picks_vectorisation_and_arithmetic() {
+        let b = || Builder::new("model.json", "map.json");
+        let picks = |b: Builder, arch, target| {
+            let o = b.options_for(arch, target);
+            (o.vectorisation, o.arithmetic)
+        };
+        let m3 = (Some("arm"), Some("thumbv7m-none-eabi"));
+        let rv = (Some("riscv32"), Some("riscv32imac-unknown-none-elf"));
+        for (arch, target, want) in [
+            (None, None, (Simd, Float)),
+            (
+                Some("x86_64"),
+                Some("x86_64-unknown-linux-gnu"),
+                (Simd, Float),
+            ),
+            (Some("arm"), Some("thumbv7em-none-eabihf"), (Scalar, Float)),
+            (m3.0, m3.1, (Scalar, Fixed)),
+            (rv.0, rv.1, (Scalar, Fixed)),
+            // A scalar architecture with no triple: nothing says it lacks an FPU.
+            (Some("riscv32"), None, (Scalar, Float)),
+        ] {
+            assert_eq!(picks(b(), arch, target), want, "{target:?}");
+        }
+        // Fixed point needs `f32` scalar code.
+        assert_eq!(
+            picks(b().precision(Precision::F64), rv.0, rv.1),
+            (Scalar, Float)
+        );
+        assert_eq!(picks(b().vectorisation(Simd), m3.0, m3.1), (Simd, Float));
+        // Told choices win over the target's.
+        assert_eq!(picks(b().arithmetic(Float), m3.0, m3.1), (Scalar, Float));
+        assert_eq!(
+            picks(b().vectorisation(Scalar), None, None),
+            (Scalar, Float)
+        );
+    }
 }
