@@ -170,6 +170,8 @@ pub fn fx_fwd<const C: usize, const NV: usize>(
     fl: impl FnOnce(&[[f32; C]; NV]) -> f32,
 ) -> f32 {
     let v = fx(&fx_rows(x));
+    #[cfg(feature = "fallback-counts")]
+    crate::fallback_counts::count_value(v.0 < min);
     if v.0 >= min { fx_to_f32(v) } else { fl(x) }
 }
 
@@ -187,6 +189,8 @@ pub fn fx_post<const C: usize, const NV: usize>(
     let q = fx_rows(x);
     let mut g = [[Fx::ZERO; C]; NV];
     let v = fx(&q, &mut g);
+    #[cfg(feature = "fallback-counts")]
+    crate::fallback_counts::count_posterior(v.0 < min);
     if v.0 < min {
         return fl(x, post);
     }
