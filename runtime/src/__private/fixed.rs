@@ -70,6 +70,12 @@ impl Fx {
     pub fn times_pow2(self, s: u32) -> Fx {
         Fx(self.0 << s)
     }
+
+    /// `self · 2^-s`, rounded down (a value the generator kept scaled by `2^s`).
+    #[inline(always)]
+    pub fn div_pow2(self, s: u32) -> Fx {
+        Fx(self.0 >> s)
+    }
 }
 
 impl Mul for Fx {

@@ -19,7 +19,9 @@
 //! `Σ_j d_ij·a[i]·b[j]` over a group is `a[i]·q_i` with `q_i = Σ_j d_ij·b[j]`, one
 //! multiply-add per term and one per group instead of a product and a multiply-add per
 //! term; the backward sweep reuses `q_i` as the adjoint of `a[i]` (−10% instructions for
-//! the log-likelihood, −18% for the marginals on Cortex-M4F at 230 places).
+//! the log-likelihood, −18% for the marginals on Cortex-M4F at 230 places). Fixed-point
+//! code keeps `q_i` scaled by a power of two that its values at ones allow
+//! (`SparseCode::group_shift`): its roundings are that much smaller.
 //!
 //! Lane operations are called through the trait (`Lanes::max`, `Lanes::mul_add`): in a
 //! scalar module `V` is `f32`, whose inherent `max` is the NaN-aware `fmaxf` library
@@ -330,7 +332,8 @@ impl<'a> SparseCode<'a> {
             for m in 0..block.sums.len() {
                 let mi = int(m);
                 let acc = quote!(#bb[#mi]);
-                let (ops_before, shifts_before) = (ops, self.shift_units.get());
+                let shifts_before = self.shift_units.get();
+                let mut row_units = 0.0;
                 for (s, seg) in block.segments.iter().enumerate() {
                     let row = &seg_rows[s][m];
                     if row.floor > 0.0 {
@@ -345,19 +348,21 @@ impl<'a> SparseCode<'a> {
                             quote!(#fp * V::splat(#floor))
                         };
                         ops += 1;
+                        // The multiply and its constant round once each.
+                        row_units += 2.0;
                         body.extend(if max {
                             quote!(#acc = Lanes::max(#acc, #f);)
                         } else {
                             quote!(#acc = #acc + #f;)
                         });
                     }
-                    ops += self.grouped_sum(l, seg, (b, s, m), row, &acc, max, body);
+                    let (o, u) = self.grouped_sum(l, seg, (b, s, m), row, &acc, max, body);
+                    (ops, row_units) = (ops + o, row_units + u);
                 }
                 if let Some(o) = ones {
-                    // Each multiply and its constant round once in the row; the
-                    // row's value reaches the root with its adjoint.
-                    let row = 2 * (ops - ops_before) + self.shift_units.get() - shifts_before;
-                    units += o.row(n, b, m) * row as f64;
+                    // The row's value reaches the root with its adjoint.
+                    row_units += (self.shift_units.get() - shifts_before) as f64;
+                    units += o.row(n, b, m) * row_units;
                 }
             }
         }
@@ -400,7 +405,10 @@ impl<'a> SparseCode<'a> {
     /// group of one term as `x_t·d`, a larger one as `a[i]·q` with the inner sum
     /// `q = Σ d·(rest of the tuple)` bound to [`Self::inner`]. With `max`, the
     /// max-product form instead: `acc = max(acc, a[i]·max_t w_t·(rest of t))` (exact
-    /// for the non-negative values an SPN holds). Returns the multiply count.
+    /// for the non-negative values an SPN holds). In fixed-point code `q` is kept
+    /// scaled by the group's [`Self::group_shift`] `2^s` and added as
+    /// `(a[i]·q)·2^-s`. Returns the multiply count and, for fixed-point code, the
+    /// row's error units of these terms (see [`Self::group_units`]).
     #[allow(clippy::too_many_arguments)]
     fn grouped_sum(
         &self,
@@ -411,18 +419,18 @@ impl<'a> SparseCode<'a> {
         acc: &TokenStream,
         max: bool,
         body: &mut TokenStream,
-    ) -> usize {
-        let mut ops = 0;
+    ) -> (usize, f64) {
+        let (mut ops, mut units) = (0, 0.0);
         let Groups { pos, groups } = group_terms(seg, row);
-        // The weight of a term: above the floor for a sum, whole for a max.
-        let weight = |d: f64, w: f64| self.weight(l, if max { w } else { d });
         for (gi, (i, terms)) in groups.iter().enumerate() {
             if let [(t, d, w)] = terms[..] {
                 let (Some(p), _) = self.product(seg, t, &[]) else {
                     continue;
                 };
                 ops += seg.inputs.len();
-                let w = weight(d, w);
+                // Each multiply and its constant round once.
+                units += 2.0 * seg.inputs.len() as f64;
+                let w = self.weight(l, if max { w } else { d });
                 body.extend(if max {
                     quote!(#acc = Lanes::max(#acc, #p * V::splat(#w));)
                 } else {
@@ -430,6 +438,14 @@ impl<'a> SparseCode<'a> {
                 });
                 continue;
             }
+            let shift = if max {
+                0
+            } else {
+                self.group_shift(seg, pos, terms)
+            };
+            let scale = 2f64.powi(shift as i32);
+            // The weight of a term: above the floor (scaled) for a sum, whole for a max.
+            let weight = |d: f64, w: f64| self.weight(l, if max { w } else { d * scale });
             let q = Self::inner(&at, gi);
             for (k, &(t, d, w)) in terms.iter().enumerate() {
                 let w = weight(d, w);
@@ -447,11 +463,69 @@ impl<'a> SparseCode<'a> {
             let a = self.elem(seg.inputs[pos], *i);
             body.extend(if max {
                 quote!(#acc = Lanes::max(#acc, #a * #q);)
+            } else if shift > 0 {
+                let s = Literal::u32_unsuffixed(shift);
+                quote!(#acc = #acc + (#a * #q).div_pow2(#s);)
             } else {
                 quote!(#acc = Lanes::mul_add(#a, #q, #acc);)
             });
+            units += self.group_units(seg, pos, *i, terms, shift);
         }
-        ops
+        (ops, units)
+    }
+
+    /// Fixed-point code: the `s` of the power of two `2^s` that a group's inner sum
+    /// `q = Σ d·(rest of the tuple)` and its constants are kept scaled by — the largest
+    /// `s ≤ 31` with `2^s` times the group's mass at ones `Σ d·(rest at ones)` (and
+    /// every `d`) below 1, so that `q` cannot overflow and its roundings are `2^-s` of
+    /// a unit of the row. `0` in float code.
+    fn group_shift(&self, seg: &Segment, pos: usize, terms: &[Term]) -> u32 {
+        let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
+            return 0;
+        };
+        let mass: f64 = terms
+            .iter()
+            .map(|&(t, d, _)| d * self.rest_at_ones(o, seg, t, pos))
+            .sum();
+        // A margin for the values at ones, which may exceed 1 by the 1e-6 that
+        // `normalised` allows.
+        let peak = terms.iter().map(|&(_, d, _)| d).fold(mass, f64::max) * (1.0 + 1e-5);
+        let mut s = 0;
+        while s < 31 && peak * 2f64.powi(s as i32 + 1) < 1.0 {
+            s += 1;
+        }
+        s
+    }
+
+    /// The product at ones of the factors of tuple `t` but the one at `pos`.
+    fn rest_at_ones(&self, o: &super::fixed::AtOnes, seg: &Segment, t: usize, pos: usize) -> f64 {
+        let idx = seg.tuple(t);
+        other_inputs(seg, pos)
+            .zip(idx.iter().enumerate().filter(|&(p, _)| p != pos))
+            .map(|(g, (_, &i))| o.value[g][i])
+            .product()
+    }
+
+    /// Fixed-point code: the error units, in the row's value, of a group of terms
+    /// (`a[i]·q` with `q = Σ_t d_t·r_t`, kept scaled by `2^s`), each rounding weighted
+    /// by its sensitivity at ones: a multiply of the rest `r_t` reaches the row times
+    /// `d_t·a[i]`; the multiply by the constant and the constant's own rounding (of
+    /// `2^-s`, times `r_t`) times `a[i]·2^-s`; the product `a[i]·q` `2^-s`, and its
+    /// shift back one unit. `0` in float code.
+    fn group_units(&self, seg: &Segment, pos: usize, i: usize, terms: &[Term], s: u32) -> f64 {
+        let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
+            return 0.0;
+        };
+        let (a, unit) = (o.value[seg.inputs[pos]][i], 2f64.powi(-(s as i32)));
+        let rest_multiplies = seg.inputs.len().saturating_sub(2) as f64;
+        let terms: f64 = terms
+            .iter()
+            .map(|&(t, d, _)| {
+                let r = self.rest_at_ones(o, seg, t, pos);
+                a * (rest_multiplies * d + unit * (1.0 + r))
+            })
+            .sum();
+        terms + unit + if s > 0 { 1.0 } else { 0.0 }
     }
 
     fn root(&self) -> TokenStream {
@@ -561,10 +635,16 @@ impl<'a> SparseCode<'a> {
             }
             let (q, a) = (Self::inner(&at, gi), self.elem(seg.inputs[pos], *i));
             let (target, ii) = (self.adjoint_name(seg.inputs[pos]), int(*i));
-            body.extend(quote!(
-                #target[#ii] = Lanes::mul_add(#gm, #q, #target[#ii]);
-                let #h = #gm * #a;
-            ));
+            // `q` is kept scaled by `2^s` (fixed point): shifted back, one more rounding.
+            let shift = self.group_shift(seg, pos, terms);
+            body.extend(if shift > 0 {
+                self.shift_units.set(self.shift_units.get() + 1);
+                let s = Literal::u32_unsuffixed(shift);
+                quote!(#target[#ii] = #target[#ii] + (#gm * #q).div_pow2(#s);)
+            } else {
+                quote!(#target[#ii] = Lanes::mul_add(#gm, #q, #target[#ii]);)
+            });
+            body.extend(quote!(let #h = #gm * #a;));
             for &(t, d, _) in terms {
                 let d = self.weight(l, d);
                 if let [_, _] = seg.inputs[..] {
