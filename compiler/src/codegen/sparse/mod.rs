@@ -42,7 +42,9 @@ use quote::{format_ident, quote};
 use super::emit::{Lit, int, join, rt};
 use super::kernels::{Plan, Segment};
 
+mod backward;
 mod mpe;
+mod scaling;
 
 /// An above-floor term of a row: `(tuple index, weight − floor, weight)`.
 type Term = (usize, f64, f64);
@@ -134,6 +136,7 @@ pub struct SparseCode<'a> {
     /// [`super::fixed`]).
     at_ones: Option<super::fixed::AtOnes>,
     forward_units: Cell<f64>,
+    backward_units: Cell<f64>,
 }
 
 /// Multiply(-add) counts of one template's functions, per call (one call evaluates
@@ -160,6 +163,7 @@ impl<'a> SparseCode<'a> {
             shift_units: Cell::new(0),
             at_ones: None,
             forward_units: Cell::new(0.0),
+            backward_units: Cell::new(0.0),
         }
     }
 
@@ -176,6 +180,13 @@ impl<'a> SparseCode<'a> {
     /// rounding weighted by the adjoint at ones of what it rounds, entries included).
     pub fn forward_units(&self) -> f64 {
         self.forward_units.get()
+    }
+
+    /// Fixed-point code: the posteriors' error units of the last backward sweep (each
+    /// rounding at its scale, see [`Self::adjoint_shift`]), besides its shifted
+    /// floor-form operations ([`Self::take_shift_units`]).
+    pub fn backward_units(&self) -> f64 {
+        self.backward_units.get()
     }
 
     /// The error units of shifted operations emitted since the last call.
@@ -474,60 +485,6 @@ impl<'a> SparseCode<'a> {
         (ops, units)
     }
 
-    /// Fixed-point code: the `s` of the power of two `2^s` that a group's inner sum
-    /// `q = Σ d·(rest of the tuple)` and its constants are kept scaled by — the largest
-    /// `s ≤ 31` with `2^s` times the group's mass at ones `Σ d·(rest at ones)` (and
-    /// every `d`) below 1, so that `q` cannot overflow and its roundings are `2^-s` of
-    /// a unit of the row. `0` in float code.
-    fn group_shift(&self, seg: &Segment, pos: usize, terms: &[Term]) -> u32 {
-        let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
-            return 0;
-        };
-        let mass: f64 = terms
-            .iter()
-            .map(|&(t, d, _)| d * self.rest_at_ones(o, seg, t, pos))
-            .sum();
-        // A margin for the values at ones, which may exceed 1 by the 1e-6 that
-        // `normalised` allows.
-        let peak = terms.iter().map(|&(_, d, _)| d).fold(mass, f64::max) * (1.0 + 1e-5);
-        let mut s = 0;
-        while s < 31 && peak * 2f64.powi(s as i32 + 1) < 1.0 {
-            s += 1;
-        }
-        s
-    }
-
-    /// The product at ones of the factors of tuple `t` but the one at `pos`.
-    fn rest_at_ones(&self, o: &super::fixed::AtOnes, seg: &Segment, t: usize, pos: usize) -> f64 {
-        let idx = seg.tuple(t);
-        other_inputs(seg, pos)
-            .zip(idx.iter().enumerate().filter(|&(p, _)| p != pos))
-            .map(|(g, (_, &i))| o.value[g][i])
-            .product()
-    }
-
-    /// Fixed-point code: the error units, in the row's value, of a group of terms
-    /// (`a[i]·q` with `q = Σ_t d_t·r_t`, kept scaled by `2^s`), each rounding weighted
-    /// by its sensitivity at ones: a multiply of the rest `r_t` reaches the row times
-    /// `d_t·a[i]`; the multiply by the constant and the constant's own rounding (of
-    /// `2^-s`, times `r_t`) times `a[i]·2^-s`; the product `a[i]·q` `2^-s`, and its
-    /// shift back one unit. `0` in float code.
-    fn group_units(&self, seg: &Segment, pos: usize, i: usize, terms: &[Term], s: u32) -> f64 {
-        let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
-            return 0.0;
-        };
-        let (a, unit) = (o.value[seg.inputs[pos]][i], 2f64.powi(-(s as i32)));
-        let rest_multiplies = seg.inputs.len().saturating_sub(2) as f64;
-        let terms: f64 = terms
-            .iter()
-            .map(|&(t, d, _)| {
-                let r = self.rest_at_ones(o, seg, t, pos);
-                a * (rest_multiplies * d + unit * (1.0 + r))
-            })
-            .sum();
-        terms + unit + if s > 0 { 1.0 } else { 0.0 }
-    }
-
     fn root(&self) -> TokenStream {
         let b = format_ident!("b{}", self.plan.root.0);
         let m = int(self.plan.root.1);
@@ -585,92 +542,6 @@ impl<'a> SparseCode<'a> {
         )
     }
 
-    /// Backward sweep of [`Self::grouped_sum`]: adds row `m`'s adjoint `g_m`, through
-    /// its above-floor terms, to the adjoints of the segment's inputs. A group of one
-    /// term adds `g_m·d·(the other factors)` to each factor's adjoint; a larger group
-    /// adds `g_m·q` to its shared factor `a[i]` and, with `h = g_m·a[i]`, `h·d·(the
-    /// other factors)` to the rest of each tuple. Returns the multiply count.
-    fn grouped_adjoints(
-        &self,
-        l: &Lit,
-        seg: &Segment,
-        at: (usize, usize, usize),
-        row: &Row,
-        body: &mut TokenStream,
-    ) -> usize {
-        let mut ops = 0;
-        let gm = {
-            let (gb, mi) = (format_ident!("g{}", at.0), int(at.2));
-            quote!(#gb[#mi])
-        };
-        // `target += h·(the factors of tuple t but those at q and `skip`)`, per
-        // position q.
-        let mut spread = |t: usize, h: &Ident, skip: Option<usize>, body: &mut TokenStream| {
-            let idx = seg.tuple(t);
-            for (q, &g) in seg.inputs.iter().enumerate() {
-                if Some(q) == skip {
-                    continue;
-                }
-                let (vector, i) = (self.adjoint_name(g), int(idx[q]));
-                let target = quote!(#vector[#i]);
-                let left_out: Vec<usize> = [Some(q), skip].into_iter().flatten().collect();
-                body.extend(match self.product(seg, t, &left_out) {
-                    (Some(o), n) => {
-                        ops += n;
-                        quote!(#target = Lanes::mul_add(#o, #h, #target);)
-                    }
-                    (None, _) => quote!(#target = #target + #h;),
-                });
-            }
-        };
-        let Groups { pos, groups } = group_terms(seg, row);
-        let h = format_ident!("h");
-        let hd = format_ident!("hd");
-        for (gi, (i, terms)) in groups.iter().enumerate() {
-            if let [(t, d, _)] = terms[..] {
-                let d = self.weight(l, d);
-                body.extend(quote!(let #h = #gm * V::splat(#d);));
-                spread(t, &h, None, body);
-                continue;
-            }
-            let (q, a) = (Self::inner(&at, gi), self.elem(seg.inputs[pos], *i));
-            let (target, ii) = (self.adjoint_name(seg.inputs[pos]), int(*i));
-            // `q` is kept scaled by `2^s` (fixed point): shifted back, one more rounding.
-            let shift = self.group_shift(seg, pos, terms);
-            body.extend(if shift > 0 {
-                self.shift_units.set(self.shift_units.get() + 1);
-                let s = Literal::u32_unsuffixed(shift);
-                quote!(#target[#ii] = #target[#ii] + (#gm * #q).div_pow2(#s);)
-            } else {
-                quote!(#target[#ii] = Lanes::mul_add(#gm, #q, #target[#ii]);)
-            });
-            body.extend(quote!(let #h = #gm * #a;));
-            for &(t, d, _) in terms {
-                let d = self.weight(l, d);
-                if let [_, _] = seg.inputs[..] {
-                    // Two inputs: the other factor's adjoint gets `h·d` in one step.
-                    let other = 1 - pos;
-                    let (vector, j) = (
-                        self.adjoint_name(seg.inputs[other]),
-                        int(seg.tuple(t)[other]),
-                    );
-                    body.extend(
-                        quote!(#vector[#j] = Lanes::mul_add(#h, V::splat(#d), #vector[#j]);),
-                    );
-                } else {
-                    body.extend(quote!(let #hd = #h * V::splat(#d);));
-                    spread(t, &hd, Some(pos), body);
-                }
-            }
-        }
-        // Groups: one multiply-add for `a[i]`, one multiply for `h` and one per term
-        // (`h·d`); a group of one term: `g_m·d`.
-        ops + groups
-            .iter()
-            .map(|(_, t)| if t.len() > 1 { 2 + t.len() } else { 1 })
-            .sum::<usize>()
-    }
-
     /// `fn <prefix>_post(x, post) -> V`: the value and the local posteriors
     /// `post[i][c] = x_i[c]·∂T/∂x_i[c] / T` of every lane, by reverse-mode adjoints;
     /// and its multiply count.
@@ -689,9 +560,11 @@ impl<'a> SparseCode<'a> {
         }
         let (g_root, m_root) = (format_ident!("g{}", p.root.0), int(p.root.1));
         let one = self.one();
+        self.backward_units.set(0.0);
+        // The root's adjoint is 1: its block's scale is 0 (`adjoint_shift`).
+        debug_assert_eq!(self.adjoint_shift(p.n + p.root.0), 0);
         body.extend(quote!(#g_root[#m_root] = #one;));
         for (b, block) in p.blocks.iter().enumerate().rev() {
-            let gb = format_ident!("g{b}");
             for (s, seg) in block.segments.iter().enumerate() {
                 let seg_rows = rows(seg);
                 let floors: Vec<(usize, f64)> = seg_rows
@@ -700,39 +573,7 @@ impl<'a> SparseCode<'a> {
                     .filter(|(_, r)| r.floor > 0.0)
                     .map(|(m, r)| (m, r.floor))
                     .collect();
-                if !floors.is_empty() {
-                    let terms: Vec<TokenStream> = floors
-                        .iter()
-                        .map(|&(m, f)| {
-                            let (m, f) = (int(m), self.weight(l, f));
-                            quote!(#gb[#m] * V::splat(#f))
-                        })
-                        .collect();
-                    ops += terms.len();
-                    let terms = join(terms, &quote!(+));
-                    body.extend(quote!(let gf = #terms;));
-                    for (q, &g) in seg.inputs.iter().enumerate() {
-                        let others: Vec<Ident> = other_inputs(seg, q)
-                            .map(|o| format_ident!("sv{o}"))
-                            .collect();
-                        let v = if others.is_empty() {
-                            quote!(gf)
-                        } else {
-                            ops += others.len();
-                            let bits = other_inputs(seg, q).map(|o| self.sum_bits(o)).sum();
-                            let others = join(others, &quote!(*));
-                            // Fixed point: the product holds the others' integer bits.
-                            let prod = quote!(gf * #others);
-                            if self.fixed {
-                                self.shifted(prod, bits)
-                            } else {
-                                prod
-                            }
-                        };
-                        let target = self.adjoint_name(g);
-                        body.extend(quote!(#rt::add_all(&mut #target, #v);));
-                    }
-                }
+                ops += self.floor_adjoints(l, b, seg, &floors, &mut body);
                 for (m, row) in seg_rows.iter().enumerate() {
                     ops += self.grouped_adjoints(l, seg, (b, s, m), row, &mut body);
                 }
@@ -741,8 +582,22 @@ impl<'a> SparseCode<'a> {
         ops += 2 * p.n * p.classes;
         let root = self.root();
         body.extend(if self.fixed {
-            // The wrapper (`fx_post`) divides by the value after checking it.
-            quote!(*post = gx;)
+            // The wrapper (`fx_post`) divides by the value after checking it; each
+            // place's adjoints are first brought back from their scale (one more
+            // rounding of each).
+            let rows = (0..p.n).map(|v| {
+                let (s, vi) = (self.adjoint_shift(v), int(v));
+                if s == 0 {
+                    quote!(post[#vi] = gx[#vi];)
+                } else {
+                    let s = Literal::u32_unsuffixed(s as u32);
+                    quote!(post[#vi] = gx[#vi].map(|a| a.div_pow2(#s));)
+                }
+            });
+            if (0..p.n).any(|v| self.adjoint_shift(v) > 0) {
+                self.add_backward_units(1.0, 0);
+            }
+            quote!(#(#rows)*)
         } else {
             quote!(#rt::post_rows(x, &gx, #root, post);)
         });

@@ -268,10 +268,10 @@ fn fixed_code(
     let fwd = ops(fx.fwd(&cx.l));
     fx.take_shift_units();
     let fwd_units = fx.forward_units().ceil() as u64;
-    // The posteriors: the forward sweep's units plus every backward rounding counted
-    // once (an adjoint's error reaches a posterior with a factor at most 1).
+    // The posteriors: the forward sweep's units plus every backward rounding at its
+    // scale (an adjoint's error reaches a posterior with a factor at most 1).
     let post = ops(fx.post(&cx.l));
-    let backward = fixed::error_units(post - fwd, 0, fx.take_shift_units());
+    let backward = fx.backward_units().ceil() as u64 + fx.take_shift_units() as u64;
     let post_units = fwd_units + backward;
     let (min_fwd, min_post) = fixed::thresholds(fwd_units, post_units);
     let id = |s: &str| format_ident!("{prefix}_{s}");

@@ -1,0 +1,133 @@
+//! Fixed-point scales of the floor + sparse functions (see `codegen::fixed`): the
+//! powers of two that a group's inner sum and each vector's adjoints are kept scaled
+//! by, so that their roundings are that much smaller, and the error units those
+//! roundings count.
+
+use proc_macro2::{Literal, TokenStream};
+use quote::quote;
+
+use super::{SparseCode, Term, other_inputs};
+use crate::codegen::kernels::Segment;
+
+impl SparseCode<'_> {
+    /// Fixed-point code: the `s` of the power of two `2^s` that a group's inner sum
+    /// `q = Σ d·(rest of the tuple)` and its constants are kept scaled by — the largest
+    /// `s ≤ 31` with `2^s` times the group's mass at ones `Σ d·(rest at ones)` (and
+    /// every `d`) below 1, so that `q` cannot overflow and its roundings are `2^-s` of
+    /// a unit of the row. `0` in float code.
+    pub(super) fn group_shift(&self, seg: &Segment, pos: usize, terms: &[Term]) -> u32 {
+        let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
+            return 0;
+        };
+        let mass: f64 = terms
+            .iter()
+            .map(|&(t, d, _)| d * self.rest_at_ones(o, seg, t, pos))
+            .sum();
+        // A margin for the values at ones, which may exceed 1 by the 1e-6 that
+        // `normalised` allows.
+        let peak = terms.iter().map(|&(_, d, _)| d).fold(mass, f64::max) * (1.0 + 1e-5);
+        let mut s = 0;
+        while s < 31 && peak * 2f64.powi(s as i32 + 1) < 1.0 {
+            s += 1;
+        }
+        s
+    }
+
+    /// The product at ones of the factors of tuple `t` but the one at `pos`.
+    pub(super) fn rest_at_ones(
+        &self,
+        o: &crate::codegen::fixed::AtOnes,
+        seg: &Segment,
+        t: usize,
+        pos: usize,
+    ) -> f64 {
+        let idx = seg.tuple(t);
+        other_inputs(seg, pos)
+            .zip(idx.iter().enumerate().filter(|&(p, _)| p != pos))
+            .map(|(g, (_, &i))| o.value[g][i])
+            .product()
+    }
+
+    /// Fixed-point code: the error units, in the row's value, of a group of terms
+    /// (`a[i]·q` with `q = Σ_t d_t·r_t`, kept scaled by `2^s`), each rounding weighted
+    /// by its sensitivity at ones: a multiply of the rest `r_t` reaches the row times
+    /// `d_t·a[i]`; the multiply by the constant and the constant's own rounding (of
+    /// `2^-s`, times `r_t`) times `a[i]·2^-s`; the product `a[i]·q` `2^-s`, and its
+    /// shift back one unit. `0` in float code.
+    pub(super) fn group_units(
+        &self,
+        seg: &Segment,
+        pos: usize,
+        i: usize,
+        terms: &[Term],
+        s: u32,
+    ) -> f64 {
+        let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
+            return 0.0;
+        };
+        let (a, unit) = (o.value[seg.inputs[pos]][i], 2f64.powi(-(s as i32)));
+        let rest_multiplies = seg.inputs.len().saturating_sub(2) as f64;
+        let terms: f64 = terms
+            .iter()
+            .map(|&(t, d, _)| {
+                let r = self.rest_at_ones(o, seg, t, pos);
+                a * (rest_multiplies * d + unit * (1.0 + r))
+            })
+            .sum();
+        terms + unit + if s > 0 { 1.0 } else { 0.0 }
+    }
+
+    /// Fixed-point code: the `S` of the power of two `2^S` that vector `g`'s adjoints
+    /// are kept scaled by in the backward sweep — the largest `S ≤ 30` that keeps its
+    /// adjoints at ones below 1 (`0` for the root's block, whose root adjoint is 1) —
+    /// so that their roundings are `2^-S` of a unit. `0` in float code.
+    pub(super) fn adjoint_shift(&self, g: usize) -> i32 {
+        let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
+            return 0;
+        };
+        let peak = o.adjoint[g].iter().copied().fold(0.0, f64::max) * (1.0 + 1e-5);
+        let mut s = 0;
+        while s < 30 && peak * 2f64.powi(s + 1) < 1.0 {
+            s += 1;
+        }
+        s
+    }
+
+    /// How much of a scale change `up` (a power of two) can go into constants `c`:
+    /// `up` when every `c·2^up` stays below 1, else the largest power that does.
+    pub(super) fn fold(&self, c: &[f64], up: i32) -> i32 {
+        let peak = c.iter().copied().fold(0.0, f64::max) * (1.0 + 1e-5);
+        let mut f = up;
+        while f > 0 && peak * 2f64.powi(f) >= 1.0 {
+            f -= 1;
+        }
+        f
+    }
+
+    /// `v`, a value scaled by `2^s`, rescaled by `2^up` (fixed point): an exact left
+    /// shift, or a right shift that rounds once more, counted in the backward units
+    /// at the target's scale `2^scale`.
+    pub(super) fn rescale(&self, v: TokenStream, up: i32, scale: i32) -> TokenStream {
+        match up {
+            0 => v,
+            u if u > 0 => {
+                let u = Literal::u32_unsuffixed(u as u32);
+                quote!((#v).times_pow2(#u))
+            }
+            u => {
+                self.add_backward_units(1.0, scale);
+                let u = Literal::u32_unsuffixed((-u) as u32);
+                quote!((#v).div_pow2(#u))
+            }
+        }
+    }
+
+    /// Adds `count` roundings of a value scaled by `2^scale` to the backward sweep's
+    /// error units (each `2^-scale` of a unit of the posteriors).
+    pub(super) fn add_backward_units(&self, count: f64, scale: i32) {
+        if self.fixed {
+            self.backward_units
+                .set(self.backward_units.get() + count * 2f64.powi(-scale));
+        }
+    }
+}
