@@ -396,6 +396,13 @@ fn fixtures() -> Vec<Fixture> {
             dense(2, true, 1, 6),
             options(F32, true, Fixed),
         ),
+        // Ten classes: the fixed-point functions keep their adjoints scaled (a place's
+        // rows by 2, blocks by more), which two classes never need.
+        components_fixture(
+            "spn_dense_four_fixed",
+            dense(4, true, 1, 9),
+            options(F32, true, Fixed),
+        ),
         spn_fixture(
             "spn_layered_scalar_f64",
             layered(2, true, 11),
