@@ -23,14 +23,8 @@ impl SparseCode<'_> {
             .iter()
             .map(|&(t, d, _)| d * self.rest_at_ones(o, seg, t, pos))
             .sum();
-        // A margin for the values at ones, which may exceed 1 by the 1e-6 that
-        // `normalised` allows.
-        let peak = terms.iter().map(|&(_, d, _)| d).fold(mass, f64::max) * (1.0 + 1e-5);
-        let mut s = 0;
-        while s < 31 && peak * 2f64.powi(s as i32 + 1) < 1.0 {
-            s += 1;
-        }
-        s
+        let peak = terms.iter().map(|&(_, d, _)| d).fold(mass, f64::max);
+        headroom(peak, 31) as u32
     }
 
     /// The product at ones of the factors of tuple `t` but the one at `pos`.
@@ -85,12 +79,7 @@ impl SparseCode<'_> {
         let Some(o) = self.at_ones.as_ref().filter(|_| self.fixed) else {
             return 0;
         };
-        let peak = o.adjoint[g].iter().copied().fold(0.0, f64::max) * (1.0 + 1e-5);
-        let mut s = 0;
-        while s < 30 && peak * 2f64.powi(s + 1) < 1.0 {
-            s += 1;
-        }
-        s
+        headroom(o.adjoint[g].iter().copied().fold(0.0, f64::max), 30)
     }
 
     /// How much of a scale change `up` (a power of two) can go into constants `c`:
@@ -130,4 +119,16 @@ impl SparseCode<'_> {
                 .set(self.backward_units.get() + count * 2f64.powi(-scale));
         }
     }
+}
+
+/// The largest `s ≤ limit` with `peak·(1 + 10^-5)·2^s < 1`: how far a value bounded by
+/// `peak` at ones can be scaled up in Q0.32 (the margin covers values at ones that
+/// exceed 1 by the `1e-6` that `normalised` allows).
+fn headroom(peak: f64, limit: i32) -> i32 {
+    let peak = peak * (1.0 + 1e-5);
+    let mut s = 0;
+    while s < limit && peak * 2f64.powi(s + 1) < 1.0 {
+        s += 1;
+    }
+    s
 }
