@@ -4,8 +4,8 @@
 # mutated generator and, when their text changed, checked against their reference
 # answers by the runtime's own test (a mutant that emits wrong code fails there; when
 # the text is unchanged that test is the baseline's and is skipped); then the
-# compiler's fast codegen tests and its unit tests. Survivors go on to the slower
-# codegen_e2e tests. Each step builds incrementally: a mutant costs about 5-130 s.
+# compiler's fast codegen tests (codegen_source's fast ones among them) and its unit
+# tests. Survivors go on to the slower codegen_e2e tests. Each step builds incrementally: a mutant costs about 5-130 s.
 #
 #   cargo mutants -p graphspn-compiler -f 'compiler/src/codegen/**/*.rs' \
 #     --list --json --diff > gen.json
@@ -19,4 +19,8 @@ if ! git diff --quiet -- runtime/tests/fixtures; then
     cargo test -q -p graphspn-runtime --test generated_fixtures
 fi
 cargo test -q -p graphspn-compiler --test codegen_report --test treemix_exact --test builder_errors
+# The generator's input checks and forbidden constructs; codegen_source's snapshot is
+# left out (it fails on any change of the text) and so are its slow tests.
+cargo test -q -p graphspn-compiler --test codegen_source -- \
+    bad_inputs_are_reported no_unsafe_alloc_or_panic
 cargo test -q -p graphspn-compiler --lib

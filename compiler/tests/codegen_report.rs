@@ -559,3 +559,60 @@ fn an_exact_zero_weight_leaves_its_floor_term_out() {
         assert_eq!(report.macs_marginals, macs, "{v:?}");
     }
 }
+
+/// The value of `pub const NAME: usize = V;` in generated source `src`.
+fn usize_constant(src: &str, name: &str) -> usize {
+    let start = src
+        .find(&format!("pub const {name}: usize = "))
+        .unwrap_or_else(|| panic!("no constant {name}"));
+    let rest = &src[start..];
+    let value = &rest[rest.find('=').unwrap() + 1..rest.find(';').unwrap()];
+    value.trim().parse().expect(name)
+}
+
+/// The public size constants of both families' modules state the shape of what was
+/// compiled, counted here from the inputs: places, classes, the root mixture's size,
+/// lanes, and the components (GraphSPN: distinct template copies over all
+/// decompositions; tree mixture: one cached message per tree and place).
+#[test]
+fn size_constants_count_the_compiled_model() {
+    use std::collections::BTreeSet;
+    for v in [Vectorisation::Scalar, Vectorisation::Simd] {
+        let b = builder("floor.json", v);
+        let inputs = b.load().expect("demo inputs");
+        let (src, r) = generate(&b);
+        let copies: BTreeSet<_> = inputs
+            .decompositions
+            .iter()
+            .flat_map(|d| &d.components)
+            .map(|c| (c.template, c.places.clone()))
+            .collect();
+        let (n, c) = (inputs.map.num_places(), inputs.map.classes.len());
+        assert_eq!(usize_constant(&src, "NUM_PLACES"), n);
+        assert_eq!(usize_constant(&src, "NUM_CLASSES"), c);
+        assert_eq!(usize_constant(&src, "NUM_DECOMPOSITIONS"), 5);
+        assert_eq!(usize_constant(&src, "LANES"), r.lanes);
+        assert_eq!(
+            usize_constant(&src, "NUM_COMPONENTS"),
+            copies.len(),
+            "{v:?}"
+        );
+        // Shared copies are what makes the mixture cheap: fewer than the sum of sizes.
+        let all: usize = inputs
+            .decompositions
+            .iter()
+            .map(|d| d.components.len())
+            .sum();
+        assert!(copies.len() < all, "{} of {all}", copies.len());
+
+        let demo = DemoTrees::new("floor.json");
+        let (src, r) = demo.generate(v, None);
+        let trees = demo.forests.forests.len();
+        assert_eq!(trees, demo.model.trees);
+        assert_eq!(usize_constant(&src, "NUM_PLACES"), n);
+        assert_eq!(usize_constant(&src, "NUM_CLASSES"), c);
+        assert_eq!(usize_constant(&src, "NUM_DECOMPOSITIONS"), trees);
+        assert_eq!(usize_constant(&src, "LANES"), r.lanes);
+        assert_eq!(usize_constant(&src, "NUM_COMPONENTS"), trees * n, "{v:?}");
+    }
+}

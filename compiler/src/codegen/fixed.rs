@@ -86,14 +86,10 @@ pub fn constant(w: f64) -> TokenStream {
     quote!(Fx(#v))
 }
 
-/// `⌊w·2^32⌋` clamped to `[0, 2^32 − 1]`.
+/// `⌊w·2^32⌋` clamped to `[0, 2^32 − 1]`: Rust's float-to-integer `as` saturates, so
+/// a negative or NaN `w` gives 0 and the upper clamp is the only one written out.
 fn quantise(w: f64) -> u64 {
-    let q = (w * 4_294_967_296.0).floor();
-    if q.is_nan() || q <= 0.0 {
-        0
-    } else {
-        (q as u64).min(u64::from(u32::MAX))
-    }
+    (((w * 4_294_967_296.0).floor()) as u64).min(u64::from(u32::MAX))
 }
 
 /// Integer bits of the sum of a vector of `len` entries in `[0, 1)`: `⌈log₂ len⌉`.
@@ -327,6 +323,9 @@ mod tests {
         assert_eq!(quantise(1.0), u64::from(u32::MAX));
         assert_eq!(quantise(-1e-9), 0);
         assert_eq!(quantise(1e-12), 0);
+        assert_eq!(quantise(f64::NAN), 0);
+        assert_eq!(quantise(f64::INFINITY), u64::from(u32::MAX));
+        assert_eq!(quantise(f64::NEG_INFINITY), 0);
         // A floor of 1/100 over a product of two 10-class sums (8 bits): 2.56 needs
         // two bits of shift.
         let (_, s) = scaled_constant(0.01, 8);
