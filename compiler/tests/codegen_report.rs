@@ -9,7 +9,7 @@ use graphspn_compiler::codegen::{
     Builder, CodegenOptions, Vectorisation, generate_trees_with_report,
 };
 use graphspn_compiler::map::TopoMap;
-use graphspn_compiler::treemix::{NO_PARENT, SpanningTrees, TreeMixture};
+use graphspn_compiler::treemix::{NO_PARENT, SpanningTrees, TreeMixError, TreeMixture};
 
 /// The demo model on demo map `file` with 5 decompositions, seed 0.
 fn builder(file: &str, v: Vectorisation) -> Builder {
@@ -369,8 +369,8 @@ fn write_report_from_any_writes_the_module_it_reports() {
     assert!(report.components > 0);
 }
 
-/// Tree-mixture generation refuses a map with another number of classes, and forests
-/// of another map, before emitting anything.
+/// Tree-mixture generation refuses a map with other classes (another number, or the
+/// same in another order), and forests of another map, before emitting anything.
 #[test]
 fn tree_generation_refuses_inputs_that_do_not_fit() {
     use graphspn_compiler::codegen::CodegenError;
@@ -395,7 +395,16 @@ fn tree_generation_refuses_inputs_that_do_not_fit() {
     fewer.classes = ClassSet::new(vec!["a".into(), "b".into()]).unwrap();
     assert!(matches!(
         generate_trees_with_report(&model, &fewer, &own, &options),
-        Err(CodegenError::ClassMismatch { .. })
+        Err(CodegenError::TreeInputs(e)) if matches!(*e, TreeMixError::ClassMismatch { .. })
+    ));
+    // The same classes in another order are another model's classes.
+    let mut swapped = floor.clone();
+    let mut names = floor.classes.names().to_vec();
+    names.swap(0, 1);
+    swapped.classes = ClassSet::new(names).unwrap();
+    assert!(matches!(
+        generate_trees_with_report(&model, &swapped, &own, &options),
+        Err(CodegenError::TreeInputs(e)) if matches!(*e, TreeMixError::ClassMismatch { .. })
     ));
 }
 

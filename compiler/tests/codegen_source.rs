@@ -6,7 +6,11 @@ use common::codegen::*;
 use graphspn_compiler::codegen::{
     CodegenError, CodegenOptions, Precision, Vectorisation, generate,
 };
-use graphspn_compiler::decompose::{Component, Decomposition};
+use graphspn_compiler::decompose::{Component, DecomposeError, Decomposition};
+use graphspn_compiler::instance::{ComponentInstance, InputsError, Instance, check_inputs};
+use graphspn_compiler::learn::Model;
+use graphspn_compiler::map::{ClassSet, TopoMap};
+use graphspn_compiler::spn::Node;
 use graphspn_compiler::template::Template;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -73,69 +77,132 @@ fn no_unsafe_alloc_or_panic() {
     }
 }
 
+/// Inputs that do not fit together are refused by the one check the generator shares
+/// with the instance GraphSPN ([`check_inputs`]): each bad input gives the same error,
+/// word for word, from `generate`, `Instance::build` and `ComponentInstance::build`.
 #[test]
 fn bad_inputs_are_reported() {
     let (m, mp, decs) = tiny();
     let opts = CodegenOptions::default();
+    let refused = |m: &Model, mp: &TopoMap, decs: &[Decomposition]| -> InputsError {
+        let shared = check_inputs(m, mp, decs).expect_err("bad inputs");
+        let generated = generate(m, mp, decs, &opts).expect_err("generate refuses");
+        assert_eq!(generated.to_string(), shared.to_string());
+        assert!(
+            matches!(generated, CodegenError::Inputs(_)),
+            "{generated:?}"
+        );
+        let built = Instance::build(m, mp, decs.to_vec()).expect_err("Instance::build");
+        assert_eq!(built.to_string(), shared.to_string());
+        let components = ComponentInstance::build(m, mp, decs.to_vec())
+            .err()
+            .unwrap();
+        assert_eq!(components.to_string(), shared.to_string());
+        shared
+    };
+    assert!(check_inputs(&m, &mp, &decs).is_ok());
     assert!(matches!(
-        generate(&m, &mp, &[], &opts),
-        Err(CodegenError::NoDecompositions)
+        refused(&m, &mp, &[]),
+        InputsError::NoDecompositions
     ));
-    let wrong_classes = map(4, 3, &[(0, 1)]);
+    let wrong_classes = map(4, 3, &[(0, 1), (1, 2), (2, 3)]);
     assert!(matches!(
-        generate(&m, &wrong_classes, &decs, &opts),
-        Err(CodegenError::ClassMismatch { .. })
+        refused(&m, &wrong_classes, &decs),
+        InputsError::ClassMismatch { .. }
+    ));
+    // The same number of classes in another order is another class set.
+    let mut swapped = mp.clone();
+    swapped.classes = ClassSet::new(vec!["C1".into(), "C0".into()]).unwrap();
+    assert!(matches!(
+        refused(&m, &swapped, &decs),
+        InputsError::ClassMismatch { .. }
     ));
     let mut twice = decs.clone();
-    twice[0].components.push(Component {
+    twice[1].components.push(Component {
         template: 1,
         places: vec![0],
     });
-    assert!(matches!(
-        generate(&m, &mp, &twice, &opts),
-        Err(CodegenError::PlaceCoveredTwice {
-            place: 0,
-            place_id: 100,
-            ..
-        })
-    ));
+    let e = refused(&m, &mp, &twice);
+    assert!(
+        matches!(
+            &e,
+            InputsError::BadDecomposition {
+                decomposition: 1,
+                source: DecomposeError::PlaceCoveredTwice {
+                    place: 0,
+                    id: Some(100),
+                    ..
+                },
+            }
+        ),
+        "{e:?}"
+    );
     let mut missing = decs.clone();
     missing[0].components.pop();
     assert!(matches!(
-        generate(&m, &mp, &missing, &opts),
-        Err(CodegenError::PlaceNotCovered { place: 2, .. })
+        refused(&m, &mp, &missing),
+        InputsError::BadDecomposition {
+            decomposition: 0,
+            source: DecomposeError::PlaceNotCovered { place: 2, .. },
+        }
     ));
-    let bad_tpl = vec![Decomposition {
-        components: vec![Component {
-            template: 9,
-            places: vec![0, 1, 2, 3],
-        }],
-    }];
+    let one = |components: Vec<Component>| vec![Decomposition { components }];
+    let c = |template: usize, places: Vec<usize>| Component { template, places };
     assert!(matches!(
-        generate(&m, &mp, &bad_tpl, &opts),
-        Err(CodegenError::BadComponent { .. })
+        refused(&m, &mp, &one(vec![c(9, vec![0, 1, 2, 3])])),
+        InputsError::BadDecomposition {
+            source: DecomposeError::UnknownTemplate { template: 9, .. },
+            ..
+        }
     ));
-    let bad_len = vec![Decomposition {
-        components: vec![
-            Component {
-                template: 0,
-                places: vec![0, 1, 2],
-            },
-            Component {
-                template: 1,
-                places: vec![3],
-            },
-        ],
-    }];
-    assert!(matches!(
-        generate(&m, &mp, &bad_len, &opts),
-        Err(CodegenError::BadComponent { .. })
-    ));
+    // A pair over three places, and a pair over places that are not adjacent.
+    for bad in [
+        one(vec![c(0, vec![0, 1, 2]), c(1, vec![3])]),
+        one(vec![c(0, vec![0, 2]), c(0, vec![1, 3])]),
+        one(vec![c(0, vec![0, 1]), c(0, vec![2, 9])]),
+    ] {
+        let e = refused(&m, &mp, &bad);
+        assert!(
+            matches!(
+                &e,
+                InputsError::BadDecomposition {
+                    source: DecomposeError::NotAMatch { .. },
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+    }
     let empty = map(0, 2, &[]);
     assert!(matches!(
-        generate(&m, &empty, &decs, &opts),
-        Err(CodegenError::EmptyMap)
+        refused(&m, &empty, &decs),
+        InputsError::EmptyMap(_)
     ));
+    let mut shape = m.clone();
+    shape.spns.pop();
+    assert!(matches!(
+        refused(&shape, &mp, &decs),
+        InputsError::ModelShape {
+            templates: 2,
+            spns: 1
+        }
+    ));
+    // A leaf of class 2 where the variables have 2 classes: template and node named.
+    let mut bad_spn = m.clone();
+    bad_spn.spns[0].nodes[1] = Node::Leaf { var: 0, class: 2 };
+    let e = refused(&bad_spn, &mp, &decs);
+    assert!(
+        matches!(
+            &e,
+            InputsError::BadTemplateSpn {
+                template: 0,
+                node: Some(1),
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("SPN node 1"), "{e}");
 }
 
 #[test]

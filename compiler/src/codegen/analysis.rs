@@ -1,5 +1,5 @@
-//! Checks on the inputs of code generation, and the generation-time analysis that
-//! decides, per template, whether linear-space evaluation is safe.
+//! The generation-time analysis that decides, per template, whether linear-space
+//! evaluation is safe (the inputs are checked by [`crate::instance::check_inputs`]).
 //!
 //! # Why linear space is safe when [`Numerics::Linear`] is chosen
 //!
@@ -21,12 +21,11 @@
 use std::collections::BTreeMap;
 
 use crate::decompose::Decomposition;
-use crate::learn::Model;
-use crate::map::TopoMap;
+
 use crate::spn::{Node, Spn};
 
+use super::Precision;
 use super::kernels::Plan;
-use super::{CodegenError, Precision};
 
 /// How a template's functions compute.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -48,102 +47,6 @@ pub const MAX_ASSIGNMENTS: u64 = 2_000_000;
 /// Largest `assignments × nodes` work spent on that bound (the default 10-class
 /// symmetric Star: 10^5 × 4,101 nodes, about 2 s in an optimised build).
 pub const MAX_WORK: u64 = 2_000_000_000;
-
-/// Checks a template SPN with the check every path shares
-/// ([`crate::learn::check_template_spn`]: variables, classes, ids, order, weights,
-/// completeness, decomposability); weights need not add up to 1.
-pub fn check_spn(t: usize, spn: &Spn, num_vars: usize, classes: usize) -> Result<(), CodegenError> {
-    crate::learn::check_template_spn(spn, num_vars, classes).map_err(|e| CodegenError::BadSpn {
-        template: t,
-        node: e.node().map_or(0, |n| n as usize),
-        what: e.to_string(),
-    })
-}
-
-/// Checks model, map and decompositions against each other.
-pub fn check_inputs(
-    model: &Model,
-    map: &TopoMap,
-    decompositions: &[Decomposition],
-) -> Result<(), CodegenError> {
-    let c = model.classes.len();
-    if map.classes.len() != c {
-        return Err(CodegenError::ClassMismatch {
-            model: c,
-            map: map.classes.len(),
-        });
-    }
-    if model.templates.len() != model.spns.len() {
-        return Err(CodegenError::ModelShape {
-            templates: model.templates.len(),
-            spns: model.spns.len(),
-        });
-    }
-    for (t, (tpl, spn)) in model.templates.iter().zip(&model.spns).enumerate() {
-        check_spn(t, spn, tpl.num_nodes, c)?;
-    }
-    let n = map.num_places();
-    if n == 0 {
-        return Err(CodegenError::EmptyMap);
-    }
-    if decompositions.is_empty() {
-        return Err(CodegenError::NoDecompositions);
-    }
-    for (d, dec) in decompositions.iter().enumerate() {
-        let mut seen = vec![None::<usize>; n];
-        for (k, comp) in dec.components.iter().enumerate() {
-            let Some(tpl) = model.templates.get(comp.template) else {
-                return Err(CodegenError::BadComponent {
-                    decomposition: d,
-                    component: k,
-                    what: format!(
-                        "template index {} out of range (model has {})",
-                        comp.template,
-                        model.templates.len()
-                    ),
-                });
-            };
-            if comp.places.len() != tpl.num_nodes {
-                return Err(CodegenError::BadComponent {
-                    decomposition: d,
-                    component: k,
-                    what: format!(
-                        "has {} places, template {:?} has {} nodes",
-                        comp.places.len(),
-                        tpl.name,
-                        tpl.num_nodes
-                    ),
-                });
-            }
-            for &p in &comp.places {
-                let Some(slot) = seen.get_mut(p) else {
-                    return Err(CodegenError::BadComponent {
-                        decomposition: d,
-                        component: k,
-                        what: format!("place index {p} out of range (map has {n} places)"),
-                    });
-                };
-                if let Some(other) = *slot {
-                    return Err(CodegenError::PlaceCoveredTwice {
-                        decomposition: d,
-                        place: p,
-                        place_id: map.place(p).id,
-                        components: (other, k),
-                    });
-                }
-                *slot = Some(k);
-            }
-        }
-        if let Some(p) = seen.iter().position(Option::is_none) {
-            return Err(CodegenError::PlaceNotCovered {
-                decomposition: d,
-                place: p,
-                place_id: map.place(p).id,
-            });
-        }
-    }
-    Ok(())
-}
 
 /// Value of every node for leaf inputs `x[var][class]` (sum or max at sum nodes).
 pub fn eval_nodes(spn: &Spn, x: &[Vec<f64>], max: bool) -> Vec<f64> {
@@ -438,21 +341,6 @@ mod tests {
             numerics(&pair([0.25, 0.75]), Precision::F32, None),
             Numerics::Log
         ));
-    }
-
-    /// `check_spn` refuses a template the shared check refuses, naming the template
-    /// and the node: here a leaf of class 2 where the variables have 2 classes.
-    #[test]
-    fn bad_templates_are_refused_with_template_and_node() {
-        assert!(check_spn(0, &pair([0.25, 0.75]), 2, 2).is_ok());
-        let mut bad = pair([0.25, 0.75]);
-        bad.nodes[1] = Node::Leaf { var: 0, class: 2 };
-        match check_spn(3, &bad, 2, 2) {
-            Err(CodegenError::BadSpn { template, node, .. }) => {
-                assert_eq!((template, node), (3, 1));
-            }
-            other => panic!("{other:?}"),
-        }
     }
 
     /// The block-wise bounds are positive lower bounds of the enumerated minima, and

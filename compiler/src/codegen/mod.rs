@@ -54,9 +54,10 @@ pub use builder::{
 use thiserror::Error;
 
 use crate::decompose::Decomposition;
+use crate::instance::{InputsError, check_inputs};
 use crate::learn::Model;
 use crate::map::TopoMap;
-use crate::treemix::{SpanningTrees, TreeMixture};
+use crate::treemix::{SpanningTrees, TreeMixError, TreeMixture};
 
 /// Floating-point type of the generated code.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -188,73 +189,14 @@ impl Default for CodegenOptions {
 /// Why code could not be generated.
 #[derive(Debug, Error)]
 pub enum CodegenError {
-    /// The model and the map disagree on the number of classes.
-    #[error("the model has {model} classes but the map has {map}")]
-    ClassMismatch {
-        /// Classes of the model.
-        model: usize,
-        /// Classes of the map.
-        map: usize,
-    },
-    /// The model has a different number of templates and SPNs.
-    #[error("the model has {templates} templates but {spns} SPNs")]
-    ModelShape {
-        /// Number of templates.
-        templates: usize,
-        /// Number of SPNs.
-        spns: usize,
-    },
-    /// A template SPN is malformed.
-    #[error("template {template}, SPN node {node}: {what}")]
-    BadSpn {
-        /// Template index.
-        template: usize,
-        /// Node id.
-        node: usize,
-        /// What is wrong.
-        what: String,
-    },
-    /// The map has no places.
-    #[error("the map has no places")]
-    EmptyMap,
-    /// No decompositions were given.
-    #[error("no decompositions were given")]
-    NoDecompositions,
-    /// A component does not fit its template or the map.
-    #[error("decomposition {decomposition}, component {component}: {what}")]
-    BadComponent {
-        /// Decomposition index.
-        decomposition: usize,
-        /// Component index within the decomposition.
-        component: usize,
-        /// What is wrong.
-        what: String,
-    },
-    /// A place is in no component of a decomposition.
-    #[error("decomposition {decomposition} does not cover place {place_id} (index {place})")]
-    PlaceNotCovered {
-        /// Decomposition index.
-        decomposition: usize,
-        /// Place index.
-        place: usize,
-        /// Place id.
-        place_id: u32,
-    },
-    /// A place is in two components of a decomposition.
-    #[error(
-        "decomposition {decomposition} covers place {place_id} (index {place}) twice, in components {} and {}",
-        components.0, components.1
-    )]
-    PlaceCoveredTwice {
-        /// Decomposition index.
-        decomposition: usize,
-        /// Place index.
-        place: usize,
-        /// Place id.
-        place_id: u32,
-        /// The two components.
-        components: (usize, usize),
-    },
+    /// The model, the map and the decompositions do not fit together (the check the
+    /// instance GraphSPN shares; boxed to keep this error small).
+    #[error(transparent)]
+    Inputs(Box<InputsError>),
+    /// A tree mixture, the map and the spanning forests do not fit together (the check
+    /// the tree mixture's interpreter shares; boxed to keep this error small).
+    #[error(transparent)]
+    TreeInputs(Box<TreeMixError>),
     /// The option values are unusable.
     #[error("bad option: {0}")]
     BadOption(String),
@@ -279,6 +221,18 @@ pub enum CodegenError {
     },
 }
 
+impl From<InputsError> for CodegenError {
+    fn from(e: InputsError) -> Self {
+        CodegenError::Inputs(Box::new(e))
+    }
+}
+
+impl From<TreeMixError> for CodegenError {
+    fn from(e: TreeMixError) -> Self {
+        CodegenError::TreeInputs(Box::new(e))
+    }
+}
+
 /// Generates the Rust source of the compiled instance GraphSPN (see the module docs).
 ///
 /// Pure: the same inputs give byte-identical output. The text starts with an
@@ -301,7 +255,7 @@ pub fn generate_with_report(
     decompositions: &[Decomposition],
     options: &CodegenOptions,
 ) -> Result<(String, CodeReport), CodegenError> {
-    analysis::check_inputs(model, map, decompositions)?;
+    check_inputs(model, map, decompositions)?;
     let (tokens, report) = wiring::module(model, map, decompositions, options)?;
     Ok((render(tokens, map, options)?, report))
 }

@@ -4,6 +4,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use thiserror::Error;
 
+use super::inputs::{InputsError, check_inputs};
 use crate::decompose::{Component, Decomposition, DecompositionStrategy};
 use crate::learn::Model;
 use crate::map::TopoMap;
@@ -35,80 +36,11 @@ impl Default for InstanceParams {
 }
 
 /// Why an instance could not be built.
-#[derive(Debug, Error, PartialEq, Eq)]
+#[derive(Debug, Error)]
 pub enum InstanceError {
-    /// The map uses a different class set than the model.
-    #[error("the map {map:?} has classes {map_classes:?} but the model has {model_classes:?}")]
-    ClassMismatch {
-        /// Map name.
-        map: String,
-        /// Class names of the map.
-        map_classes: Vec<String>,
-        /// Class names of the model.
-        model_classes: Vec<String>,
-    },
-    /// The map has no places.
-    #[error("the map {0:?} has no places")]
-    EmptyMap(String),
-    /// No decomposition was given.
-    #[error("an instance needs at least one decomposition")]
-    NoDecompositions,
-    /// A component names a template the model does not have.
-    #[error(
-        "decomposition {decomposition}: component {component} uses template index {template}, but the model has {count} templates"
-    )]
-    UnknownTemplate {
-        /// Decomposition index.
-        decomposition: usize,
-        /// Component index within it.
-        component: usize,
-        /// The template index given.
-        template: usize,
-        /// Number of templates of the model.
-        count: usize,
-    },
-    /// A component's place count differs from its template's node count.
-    #[error(
-        "decomposition {decomposition}: component {component} has {found} places but template {template:?} has {expected} nodes"
-    )]
-    WrongArity {
-        /// Decomposition index.
-        decomposition: usize,
-        /// Component index within it.
-        component: usize,
-        /// Template name.
-        template: String,
-        /// Template node count.
-        expected: usize,
-        /// Places given.
-        found: usize,
-    },
-    /// A place index outside the map.
-    #[error(
-        "decomposition {decomposition}: component {component} refers to place index {place}, but the map has {count} places"
-    )]
-    PlaceOutOfRange {
-        /// Decomposition index.
-        decomposition: usize,
-        /// Component index within it.
-        component: usize,
-        /// The place index.
-        place: usize,
-        /// Number of places of the map.
-        count: usize,
-    },
-    /// A decomposition covers a place twice or not at all.
-    #[error(
-        "decomposition {decomposition} covers place {place_id} {times} times (must be exactly once)"
-    )]
-    NotAPartition {
-        /// Decomposition index.
-        decomposition: usize,
-        /// Id of the place.
-        place_id: u32,
-        /// How often it is covered.
-        times: usize,
-    },
+    /// The model, the map and the decompositions do not fit together.
+    #[error(transparent)]
+    Inputs(#[from] InputsError),
     /// [`Instance::update`] was given a map with fewer places than before.
     #[error("an instance can only grow: the map had {before} places and now has {after}")]
     MapShrank {
@@ -116,14 +48,6 @@ pub enum InstanceError {
         before: usize,
         /// Places now.
         after: usize,
-    },
-    /// A template SPN's variable count or class count does not fit its template.
-    #[error("the model's SPN for template {template:?} does not fit it: {reason}")]
-    BadTemplateSpn {
-        /// Template name.
-        template: String,
-        /// What is wrong.
-        reason: String,
     },
 }
 
@@ -378,103 +302,4 @@ pub(super) fn edge_set(map: &TopoMap) -> BTreeSet<(usize, usize)> {
         .into_iter()
         .map(|(a, b)| (a.min(b), a.max(b)))
         .collect()
-}
-
-/// Checks a model, map and decompositions fit together (shared with the component evaluator).
-pub(super) fn check_inputs(
-    model: &Model,
-    map: &TopoMap,
-    decompositions: &[Decomposition],
-) -> Result<(), InstanceError> {
-    if map.classes != model.classes {
-        return Err(InstanceError::ClassMismatch {
-            map: map.name.clone(),
-            map_classes: map.classes.names().to_vec(),
-            model_classes: model.classes.names().to_vec(),
-        });
-    }
-    if map.num_places() == 0 {
-        return Err(InstanceError::EmptyMap(map.name.clone()));
-    }
-    if decompositions.is_empty() {
-        return Err(InstanceError::NoDecompositions);
-    }
-    for (t, spn) in model.templates.iter().zip(&model.spns) {
-        if spn.num_vars() != t.num_nodes {
-            return Err(InstanceError::BadTemplateSpn {
-                template: t.name.clone(),
-                reason: format!(
-                    "{} variables for {} template nodes",
-                    spn.num_vars(),
-                    t.num_nodes
-                ),
-            });
-        }
-        if let Some(v) = spn
-            .classes
-            .iter()
-            .position(|&c| c as usize != model.classes.len())
-        {
-            return Err(InstanceError::BadTemplateSpn {
-                template: t.name.clone(),
-                reason: format!(
-                    "variable {v} has {} classes, the model has {}",
-                    spn.classes[v],
-                    model.classes.len()
-                ),
-            });
-        }
-    }
-    if model.spns.len() != model.templates.len() {
-        return Err(InstanceError::BadTemplateSpn {
-            template: String::new(),
-            reason: format!(
-                "{} SPNs for {} templates",
-                model.spns.len(),
-                model.templates.len()
-            ),
-        });
-    }
-    let n = map.num_places();
-    for (di, d) in decompositions.iter().enumerate() {
-        let mut covered = vec![0usize; n];
-        for (ci, comp) in d.components.iter().enumerate() {
-            let Some(t) = model.templates.get(comp.template) else {
-                return Err(InstanceError::UnknownTemplate {
-                    decomposition: di,
-                    component: ci,
-                    template: comp.template,
-                    count: model.templates.len(),
-                });
-            };
-            if comp.places.len() != t.num_nodes {
-                return Err(InstanceError::WrongArity {
-                    decomposition: di,
-                    component: ci,
-                    template: t.name.clone(),
-                    expected: t.num_nodes,
-                    found: comp.places.len(),
-                });
-            }
-            for &p in &comp.places {
-                if p >= n {
-                    return Err(InstanceError::PlaceOutOfRange {
-                        decomposition: di,
-                        component: ci,
-                        place: p,
-                        count: n,
-                    });
-                }
-                covered[p] += 1;
-            }
-        }
-        if let Some(p) = covered.iter().position(|&k| k != 1) {
-            return Err(InstanceError::NotAPartition {
-                decomposition: di,
-                place_id: map.place(p).id,
-                times: covered[p],
-            });
-        }
-    }
-    Ok(())
 }

@@ -49,7 +49,7 @@ pub mod train;
 pub mod trees;
 
 #[cfg(feature = "host")]
-pub use exact::{TreeInstance, TreeMarginals};
+pub use exact::{TreeInstance, TreeMarginals, check_inputs};
 #[cfg(feature = "host")]
 pub use fit::{FitGraph, FitOptions, FitReport, fit_potentials};
 pub use model::{MAX_TREES, TreeMixture};

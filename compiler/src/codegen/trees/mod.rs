@@ -37,32 +37,6 @@ use super::{CodegenError, CodegenOptions};
 use graphspn_runtime::__private::FactorCache;
 use plan::{Context, ForestPlan, Potentials};
 
-/// Checks that the model, the map and the forests fit each other.
-pub fn check_inputs(
-    model: &TreeMixture,
-    map: &TopoMap,
-    trees: &SpanningTrees,
-) -> Result<(), CodegenError> {
-    if map.classes.len() != model.num_classes() {
-        return Err(CodegenError::ClassMismatch {
-            model: model.num_classes(),
-            map: map.classes.len(),
-        });
-    }
-    if map.num_places() == 0 {
-        return Err(CodegenError::EmptyMap);
-    }
-    model
-        .check("<model>")
-        .map_err(|e| CodegenError::BadOption(e.to_string()))?;
-    if trees.is_empty() {
-        return Err(CodegenError::NoDecompositions);
-    }
-    trees
-        .check_fits(map)
-        .map_err(|e| CodegenError::BadOption(e.to_string()))
-}
-
 /// The whole module as tokens, and its report.
 pub fn module(
     model: &TreeMixture,
@@ -70,7 +44,7 @@ pub fn module(
     trees: &SpanningTrees,
     options: &CodegenOptions,
 ) -> Result<(TokenStream, CodeReport), CodegenError> {
-    check_inputs(model, map, trees)?;
+    crate::treemix::check_inputs(model, map, trees)?;
     let cx = Context::new(model, trees, options)?;
     let pot = Potentials::new(model, &cx);
     let plans: Vec<ForestPlan> = trees

@@ -44,8 +44,9 @@ use std::collections::{BTreeSet, HashMap};
 use graphspn_runtime::EvidenceError;
 use rayon::prelude::*;
 
-use super::build::{check_inputs, edge_set};
+use super::build::edge_set;
 use super::grow::grow_decompositions;
+use super::inputs::check_inputs;
 use super::{CopyStats, InstanceError, InstanceParams, InstanceQueryError};
 use crate::decompose::{Component, Decomposition, DecompositionParams, decompose_best};
 use crate::interpreter::{Marginals, Mpe};
@@ -163,7 +164,7 @@ impl ComponentInstance {
         map: &TopoMap,
         decompositions: Vec<Decomposition>,
     ) -> Result<Self, InstanceQueryError> {
-        check_inputs(model, map, &decompositions)?;
+        check_inputs(model, map, &decompositions).map_err(InstanceError::from)?;
         let num_classes = model.classes.len();
         let mut plans = Vec::with_capacity(model.spns.len());
         for (t, spn) in model.templates.iter().zip(&model.spns) {
@@ -573,7 +574,7 @@ impl ComponentInstance {
         map: &TopoMap,
         decompositions: Vec<Decomposition>,
     ) -> Result<(), InstanceQueryError> {
-        check_inputs(model, map, &decompositions)?;
+        check_inputs(model, map, &decompositions).map_err(InstanceError::from)?;
         let n = map.num_places();
         if n < self.num_places {
             return Err(InstanceError::MapShrank {
