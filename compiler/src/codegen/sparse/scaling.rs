@@ -83,14 +83,13 @@ impl SparseCode<'_> {
     }
 
     /// How much of a scale change `up` (a power of two) can go into constants `c`:
-    /// `up` when every `c·2^up` stays below 1, else the largest power that does.
+    /// all of a scale-down (`up ≤ 0`: the constants only shrink), and of a scale-up
+    /// the largest power that keeps every `c·2^up` below 1 ([`headroom`]).
     pub(super) fn fold(&self, c: &[f64], up: i32) -> i32 {
-        let peak = c.iter().copied().fold(0.0, f64::max) * (1.0 + 1e-5);
-        let mut f = up;
-        while f > 0 && peak * 2f64.powi(f) >= 1.0 {
-            f -= 1;
+        if up <= 0 {
+            return up;
         }
-        f
+        headroom(c.iter().copied().fold(0.0, f64::max), up)
     }
 
     /// `v`, a value scaled by `2^s`, rescaled by `2^up` (fixed point): an exact left
