@@ -268,6 +268,10 @@ pub trait Real:
     const LN_2: Self;
     /// `-inf`.
     const NEG_INFINITY: Self;
+    /// `-(p + 8)·ln 2` for a `p`-bit significand: a weight below `e` to this power,
+    /// relative to a weight of 1 in the same sum, is `2^-8` of that sum's last bit, so
+    /// a mixture may drop it (see [`engine::mix`]).
+    const NEGLIGIBLE_LN: Self;
     /// The value as an index (truncated; `0` for negative or NaN values).
     fn index(self) -> usize;
     /// An index as a value (exact below 2^24 for `f32`).
@@ -348,6 +352,7 @@ macro_rules! real_impl {
             const ONE: $t = 1.0;
             const LN_2: $t = core::$t::consts::LN_2;
             const NEG_INFINITY: $t = $t::NEG_INFINITY;
+            const NEGLIGIBLE_LN: $t = -(($mant + 9) as $t) * core::$t::consts::LN_2;
             #[inline(always)]
             fn index(self) -> usize {
                 self as usize

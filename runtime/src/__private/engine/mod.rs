@@ -123,6 +123,13 @@ impl<T: Real> Acc<T> {
 
 /// The decompositions' mixture: `ln Ŝ = ln((1/D) Σ_d Π_k T_k)` and the posterior weight
 /// `w_d` of each decomposition, or `None` when every decomposition is `0`.
+///
+/// A decomposition more than `-Real::NEGLIGIBLE_LN` nats below the best (`2^-32` of it in
+/// `f32`, `2^-61` in `f64`) gets weight exactly `0` and is left out of `Ŝ`: together the
+/// D − 1 such terms move `ln Ŝ` and every weighted sum by less than `D·2^-32` (`f32`)
+/// relative, a small fraction of one rounding; and an exact `0` is what lets a mix skip
+/// the decomposition and never multiplies by a subnormal weight (about 100 cycles each
+/// on x86).
 #[inline]
 pub fn mix<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<(T, [T; D])> {
     // The log of each mantissa once (in `[0, ln 2)`): the comparisons and weights then
@@ -155,7 +162,10 @@ pub fn mix<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<(T, [T; D])> {
         if core::ptr::eq(a, best) {
             *o = T::ONE;
         } else if !a.is_zero() {
-            *o = rel(a, la, best, lb).exp();
+            let r = rel(a, la, best, lb);
+            if r > T::NEGLIGIBLE_LN {
+                *o = r.exp();
+            }
         }
         s += *o;
     }
@@ -476,6 +486,30 @@ mod tests {
         assert!(b.is_zero(), "a log factor of −∞");
         assert_eq!(mix(&[Acc::<f32>::ZERO, a, b]).map(|(l, _)| l), None);
         assert_eq!(best(&[Acc::<f32>::ZERO, a, b]), None);
+    }
+
+    /// A decomposition more than `-NEGLIGIBLE_LN` (22.18 nats in `f32`) below the best
+    /// gets weight exactly 0 (never a subnormal), one closer keeps its weight, and
+    /// neither moves `ln Ŝ` by more than a rounding.
+    #[test]
+    fn negligible_decompositions_get_weight_zero() {
+        assert!((f32::NEGLIGIBLE_LN + 32.0 * core::f32::consts::LN_2).abs() < 1e-5);
+        assert!((f64::NEGLIGIBLE_LN + 61.0 * core::f64::consts::LN_2).abs() < 1e-12);
+        let logs = |lg: [f32; 3]| {
+            lg.map(|l| {
+                let mut a = acc(1.0, 0);
+                a.mul_log(l);
+                a
+            })
+        };
+        let (l, w) = mix(&logs([0.0, -22.0, -22.5])).unwrap();
+        assert_eq!((w[0], w[2]), (1.0 / (1.0 + (-22f32).exp()), 0.0), "{w:?}");
+        assert!(w[1] > 0.0 && (w[1] - (-22f32).exp()).abs() < 1e-15, "{w:?}");
+        assert!((l + 3f32.ln()).abs() < 1e-6, "{l}");
+        // Far below the smallest normal f32 (e^-100): 0, not a subnormal.
+        let (_, w) = mix(&logs([0.0, -100.0, -1.0])).unwrap();
+        assert_eq!(w[1], 0.0);
+        assert!(w[2] > 0.2);
     }
 
     /// Decompositions whose values lie `2^290` apart, far beyond the `f32` range: the

@@ -375,8 +375,28 @@ pub fn mix_places<T: Real, const C: usize, const D: usize, const N: usize>(
     w: &[T; D],
     out: &mut [[T; C]; N],
 ) {
+    // One decomposition carrying the whole mixture (see `mix_decompositions`): one row
+    // per place instead of D.
+    if let Some((d, wd)) = sole_weight(w) {
+        for (o, s) in out.iter_mut().zip(slots) {
+            let row = s.get(d).and_then(|&i| post.get(i as usize));
+            *o = row.map_or([T::ZERO; C], |r| r.map(|x| wd * x));
+        }
+        return;
+    }
     for (o, s) in out.iter_mut().zip(slots) {
         mix_rows(post, s, w, o);
+    }
+}
+
+/// The decomposition and its weight when exactly one weight is not `0` ([`super::mix`]
+/// sets negligible weights to exactly `0`; the usual case once evidence has piled up).
+#[inline]
+fn sole_weight<T: Real, const D: usize>(w: &[T; D]) -> Option<(usize, T)> {
+    let mut live = w.iter().enumerate().filter(|&(_, &wd)| wd > T::ZERO);
+    match (live.next(), live.next()) {
+        (Some((d, &wd)), None) => Some((d, wd)),
+        _ => None,
     }
 }
 
@@ -427,6 +447,15 @@ pub fn mix_decompositions<
     w: &[W::Scalar; D],
     out: &mut [[W::Scalar; C]; N],
 ) {
+    // When one decomposition carries the whole mixture (the others' weights are exactly
+    // 0, see `mix`: the usual case once evidence has piled up), one stream of rows is
+    // read instead of D.
+    if let Some((wd, rows)) = sole_weight(w).and_then(|(d, wd)| Some((wd, dpost.get(d)?))) {
+        for (o, &x) in out.as_flattened_mut().iter_mut().zip(rows.as_flattened()) {
+            *o = wd * x;
+        }
+        return;
+    }
     let (chunks, rest) = out.as_flattened_mut().as_chunks_mut::<L>();
     let tail = chunks.len() * L;
     for (i, o) in chunks.iter_mut().enumerate() {
@@ -595,7 +624,6 @@ mod tests {
                 *x = 0.1 + ((i * 7 + k * 3) % 11) as f32 / 11.0;
             }
         }
-        let w = [0.5f32, 0.3, 0.2];
         let store =
             |post: &[[f32; 3]; 10], cache: &mut [[f32; 3]], dpost: &mut [[[f32; 3]; 4]; 3]| {
                 for (k, (g, &mask)) in t.places.iter().zip(t.decs).enumerate() {
@@ -606,7 +634,17 @@ mod tests {
                     }
                 }
             };
-        let check = |dpost: &[[[f32; 3]; 4]; 3], post: &[[f32; 3]]| {
+        let check_with = |dpost: &[[[f32; 3]; 4]; 3], post: &[[f32; 3]], w: [f32; 3]| {
+            let mut plain = [[0f32; 3]; 4];
+            for (q, row) in plain.iter_mut().enumerate() {
+                for (d, &wd) in w.iter().enumerate() {
+                    if let Some(r) = post.get(slots[q][d] as usize) {
+                        for (o, &x) in row.iter_mut().zip(r) {
+                            *o += wd * x;
+                        }
+                    }
+                }
+            }
             let mut want = [[0f32; 3]; 4];
             mix_places(post, &slots, &w, &mut want);
             let mut lanes = [[0f32; 3]; 4];
@@ -617,7 +655,7 @@ mod tests {
                 let mut one = [0f32; 3];
                 mix_place(dpost, &w, q, &mut one);
                 for k in 0..3 {
-                    for got in [lanes[q][k], scalar[q][k], one[k]] {
+                    for got in [lanes[q][k], scalar[q][k], one[k], plain[q][k]] {
                         assert!(
                             (got - want[k]).abs() < 1e-6,
                             "place {q} class {k}: {got} vs {}",
@@ -625,6 +663,13 @@ mod tests {
                         );
                     }
                 }
+            }
+        };
+        // Weights of three decompositions, then of one alone (the others exactly 0, as
+        // `mix` leaves negligible ones: the one-row paths), checked against a plain sum.
+        let check = |dpost: &[[[f32; 3]; 4]; 3], post: &[[f32; 3]]| {
+            for w in [[0.5f32, 0.3, 0.2], [0.0, 1.0, 0.0], [0.0, 0.0, 0.75]] {
+                check_with(dpost, post, w);
             }
         };
         let mut cache = [[0f32; 3]; 10];
