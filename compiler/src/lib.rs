@@ -37,6 +37,7 @@ pub mod domain;
 #[cfg(feature = "host")]
 pub mod experiments;
 pub mod family;
+pub mod inputs;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod instance;

@@ -1,5 +1,5 @@
 //! The generation-time analysis that decides, per template, whether linear-space
-//! evaluation is safe (the inputs are checked by [`crate::instance::check_inputs`]).
+//! evaluation is safe (the inputs are checked by [`crate::inputs::check_inputs`]).
 //!
 //! # Why linear space is safe when [`Numerics::Linear`] is chosen
 //!

@@ -54,7 +54,7 @@ pub use builder::{
 use thiserror::Error;
 
 use crate::decompose::Decomposition;
-use crate::instance::{InputsError, check_inputs};
+use crate::inputs::{InputsError, check_inputs};
 use crate::learn::Model;
 use crate::map::TopoMap;
 use crate::treemix::{SpanningTrees, TreeMixError, TreeMixture};

@@ -4,8 +4,8 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use thiserror::Error;
 
-use super::inputs::{InputsError, check_inputs};
 use crate::decompose::{Component, Decomposition, DecompositionStrategy};
+use crate::inputs::{InputsError, check_inputs};
 use crate::learn::Model;
 use crate::map::TopoMap;
 use crate::spn::{Node, NodeId, Spn};

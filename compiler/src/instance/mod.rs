@@ -28,13 +28,12 @@ mod build;
 mod components;
 mod export;
 mod grow;
-mod inputs;
 mod query;
 
+pub use crate::inputs::{InputsError, check_inputs};
 pub use crate::spn::Mixing;
 pub use build::{CopyStats, Instance, InstanceError, InstanceParams};
 pub use components::{ComponentInstance, estimated_component_bytes, estimated_explicit_bytes};
 pub use export::{spn_dot, tree_instance_json};
 pub use grow::grow_decompositions;
-pub use inputs::{InputsError, check_inputs};
 pub use query::{InstanceModel, InstanceQueryError};

@@ -60,35 +60,6 @@ struct Upward {
     log_value: f64,
 }
 
-/// Checks that `model`, `map` and `trees` fit together: a valid model, the same class
-/// names, a map with places and at least one spanning forest, each of them a forest of
-/// `map`. The interpreter ([`TreeInstance::build`]) and the code generator both run it.
-pub fn check_inputs(
-    model: &TreeMixture,
-    map: &TopoMap,
-    trees: &SpanningTrees,
-) -> Result<(), TreeMixError> {
-    model
-        .check("<model>")
-        .map_err(|e| TreeMixError::Model(e.to_string()))?;
-    if map.classes.names() != model.classes.names() {
-        return Err(TreeMixError::ClassMismatch {
-            map: map.name.clone(),
-            map_classes: map.classes.names().to_vec(),
-            model_classes: model.classes.names().to_vec(),
-        });
-    }
-    if map.num_places() == 0 {
-        return Err(TreeMixError::EmptyMap(map.name.clone()));
-    }
-    if trees.is_empty() {
-        return Err(TreeMixError::BadTrees(
-            "a tree mixture needs at least one tree".into(),
-        ));
-    }
-    trees.check_fits(map)
-}
-
 impl TreeInstance {
     /// The instance of `model` on `map` over `trees` (checked against both), without
     /// evidence.
@@ -97,7 +68,7 @@ impl TreeInstance {
         map: &TopoMap,
         trees: SpanningTrees,
     ) -> Result<Self, TreeMixError> {
-        check_inputs(model, map, &trees)?;
+        super::check_inputs(model, map, &trees)?;
         let c = model.num_classes();
         let n = map.num_places();
         let children = trees.forests.iter().map(|f| f.children()).collect();

@@ -49,7 +49,7 @@ pub mod train;
 pub mod trees;
 
 #[cfg(feature = "host")]
-pub use exact::{TreeInstance, TreeMarginals, check_inputs};
+pub use exact::{TreeInstance, TreeMarginals};
 #[cfg(feature = "host")]
 pub use fit::{FitGraph, FitOptions, FitReport, fit_potentials};
 pub use model::{MAX_TREES, TreeMixture};
@@ -57,7 +57,7 @@ pub use model::{MAX_TREES, TreeMixture};
 pub use spn::instance_spn;
 #[cfg(feature = "host")]
 pub use train::{NoiseFit, TreeTraining, train_tree_mixture};
-pub use trees::{NO_PARENT, RootedForest, SpanningTrees};
+pub use trees::{NO_PARENT, RootedForest, SpanningTrees, check_inputs};
 
 use graphspn_runtime::EvidenceError;
 use thiserror::Error;

@@ -14,7 +14,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::TreeMixError;
+use super::{TreeMixError, TreeMixture};
 use crate::map::TopoMap;
 
 /// Parent of a root in [`RootedForest::parent`].
@@ -317,4 +317,33 @@ fn find(sets: &mut [u32], x: u32) -> u32 {
         y = next;
     }
     r
+}
+
+/// Checks that `model`, `map` and `trees` fit together: a valid model, the same class
+/// names, a map with places and at least one spanning forest, each of them a forest of
+/// `map`. The interpreter ([`TreeInstance::build`]) and the code generator both run it.
+pub fn check_inputs(
+    model: &TreeMixture,
+    map: &TopoMap,
+    trees: &SpanningTrees,
+) -> Result<(), TreeMixError> {
+    model
+        .check("<model>")
+        .map_err(|e| TreeMixError::Model(e.to_string()))?;
+    if map.classes.names() != model.classes.names() {
+        return Err(TreeMixError::ClassMismatch {
+            map: map.name.clone(),
+            map_classes: map.classes.names().to_vec(),
+            model_classes: model.classes.names().to_vec(),
+        });
+    }
+    if map.num_places() == 0 {
+        return Err(TreeMixError::EmptyMap(map.name.clone()));
+    }
+    if trees.is_empty() {
+        return Err(TreeMixError::BadTrees(
+            "a tree mixture needs at least one tree".into(),
+        ));
+    }
+    trees.check_fits(map)
 }

@@ -46,9 +46,9 @@ use rayon::prelude::*;
 
 use super::build::edge_set;
 use super::grow::grow_decompositions;
-use super::inputs::check_inputs;
 use super::{CopyStats, InstanceError, InstanceParams, InstanceQueryError};
 use crate::decompose::{Component, Decomposition, DecompositionParams, decompose_best};
+use crate::inputs::check_inputs;
 use crate::interpreter::{Marginals, Mpe};
 use crate::learn::Model;
 use crate::map::{ClassId, TopoMap};

@@ -1,6 +1,7 @@
-//! The one check that a model, a map and decompositions fit together. The instance
-//! GraphSPN (explicit and component by component) and the code generator both run it,
-//! so an input that one of them refuses the other refuses too, with the same message.
+//! The one check that a GraphSPN model, a map and decompositions fit together. The
+//! instance GraphSPN (explicit and component by component) and the code generator
+//! both run it, so an input that one of them refuses the other refuses too, with the
+//! same message. (A tree mixture's counterpart is [`crate::treemix::check_inputs`].)
 
 use thiserror::Error;
 
