@@ -127,9 +127,8 @@ impl<T: Real> Acc<T> {
 /// A decomposition more than `-Real::NEGLIGIBLE_LN` nats below the best (`2^-32` of it in
 /// `f32`, `2^-61` in `f64`) gets weight exactly `0` and is left out of `Ŝ`: together the
 /// D − 1 such terms move `ln Ŝ` and every weighted sum by less than `D·2^-32` (`f32`)
-/// relative, a small fraction of one rounding; and an exact `0` is what lets a mix skip
-/// the decomposition and never multiplies by a subnormal weight (about 100 cycles each
-/// on x86).
+/// relative, a small fraction of one rounding; and no mix then multiplies by a
+/// subnormal weight (about 100 cycles each on x86).
 #[inline]
 pub fn mix<T: Real, const D: usize>(acc: &[Acc<T>; D]) -> Option<(T, [T; D])> {
     // The log of each mantissa once (in `[0, ln 2)`): the comparisons and weights then

@@ -375,28 +375,8 @@ pub fn mix_places<T: Real, const C: usize, const D: usize, const N: usize>(
     w: &[T; D],
     out: &mut [[T; C]; N],
 ) {
-    // One decomposition carrying the whole mixture (see `mix_decompositions`): one row
-    // per place instead of D.
-    if let Some((d, wd)) = sole_weight(w) {
-        for (o, s) in out.iter_mut().zip(slots) {
-            let row = s.get(d).and_then(|&i| post.get(i as usize));
-            *o = row.map_or([T::ZERO; C], |r| r.map(|x| wd * x));
-        }
-        return;
-    }
     for (o, s) in out.iter_mut().zip(slots) {
         mix_rows(post, s, w, o);
-    }
-}
-
-/// The decomposition and its weight when exactly one weight is not `0` ([`super::mix`]
-/// sets negligible weights to exactly `0`; the usual case once evidence has piled up).
-#[inline]
-fn sole_weight<T: Real, const D: usize>(w: &[T; D]) -> Option<(usize, T)> {
-    let mut live = w.iter().enumerate().filter(|&(_, &wd)| wd > T::ZERO);
-    match (live.next(), live.next()) {
-        (Some((d, &wd)), None) => Some((d, wd)),
-        _ => None,
     }
 }
 
@@ -447,15 +427,6 @@ pub fn mix_decompositions<
     w: &[W::Scalar; D],
     out: &mut [[W::Scalar; C]; N],
 ) {
-    // When one decomposition carries the whole mixture (the others' weights are exactly
-    // 0, see `mix`: the usual case once evidence has piled up), one stream of rows is
-    // read instead of D.
-    if let Some((wd, rows)) = sole_weight(w).and_then(|(d, wd)| Some((wd, dpost.get(d)?))) {
-        for (o, &x) in out.as_flattened_mut().iter_mut().zip(rows.as_flattened()) {
-            *o = wd * x;
-        }
-        return;
-    }
     let (chunks, rest) = out.as_flattened_mut().as_chunks_mut::<L>();
     let tail = chunks.len() * L;
     for (i, o) in chunks.iter_mut().enumerate() {
@@ -666,7 +637,7 @@ mod tests {
             }
         };
         // Weights of three decompositions, then of one alone (the others exactly 0, as
-        // `mix` leaves negligible ones: the one-row paths), checked against a plain sum.
+        // `mix` leaves negligible ones), checked against a plain sum.
         let check = |dpost: &[[[f32; 3]; 4]; 3], post: &[[f32; 3]]| {
             for w in [[0.5f32, 0.3, 0.2], [0.0, 1.0, 0.0], [0.0, 0.0, 0.75]] {
                 check_with(dpost, post, w);
