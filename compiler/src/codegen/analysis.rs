@@ -21,7 +21,6 @@
 use std::collections::BTreeMap;
 
 use crate::decompose::Decomposition;
-
 use crate::spn::{Node, Spn};
 
 use super::Precision;
