@@ -7,7 +7,8 @@ use graphspn_compiler::codegen::{
     CodegenError, CodegenOptions, Precision, Vectorisation, generate,
 };
 use graphspn_compiler::decompose::{Component, DecomposeError, Decomposition};
-use graphspn_compiler::instance::{ComponentInstance, InputsError, Instance, check_inputs};
+use graphspn_compiler::inputs::{InputsError, check_inputs};
+use graphspn_compiler::instance::{ComponentInstance, Instance};
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::{ClassSet, TopoMap};
 use graphspn_compiler::spn::Node;

@@ -30,7 +30,6 @@ mod export;
 mod grow;
 mod query;
 
-pub use crate::inputs::{InputsError, check_inputs};
 pub use crate::spn::Mixing;
 pub use build::{CopyStats, Instance, InstanceError, InstanceParams};
 pub use components::{ComponentInstance, estimated_component_bytes, estimated_explicit_bytes};

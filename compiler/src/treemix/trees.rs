@@ -321,7 +321,7 @@ fn find(sets: &mut [u32], x: u32) -> u32 {
 
 /// Checks that `model`, `map` and `trees` fit together: a valid model, the same class
 /// names, a map with places and at least one spanning forest, each of them a forest of
-/// `map`. The interpreter ([`TreeInstance::build`]) and the code generator both run it.
+/// `map`. The interpreter (`TreeInstance::build`) and the code generator both run it.
 pub fn check_inputs(
     model: &TreeMixture,
     map: &TopoMap,

@@ -269,8 +269,8 @@ pub trait Real:
     /// `-inf`.
     const NEG_INFINITY: Self;
     /// `-(p + 8)·ln 2` for a `p`-bit significand: a weight below `e` to this power,
-    /// relative to a weight of 1 in the same sum, is `2^-8` of that sum's last bit, so
-    /// a mixture may drop it (see [`engine::mix`]).
+    /// relative to a weight of 1 in the same sum, is `2^-9` of the last bit of that sum
+    /// (at least 1), so a mixture may drop it (see [`engine::mix`]).
     const NEGLIGIBLE_LN: Self;
     /// The value as an index (truncated; `0` for negative or NaN values).
     fn index(self) -> usize;
