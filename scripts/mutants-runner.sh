@@ -14,8 +14,14 @@
 # OUT_DIR gets results.txt (one line per mutant: index, CAUGHT / MISSED / UNVIABLE (the
 # mutated crate does not compile; generated code that does not compile is CAUGHT),
 # place, what changed, seconds) and each mutant's test log; a re-run skips the
-# mutants already in results.txt. The scratch clone is OUT_DIR/tree (from the
-# current commit of this checkout; its target directory is reused between mutants).
+# mutants already in results.txt. With MUTANTS_RECORD=FILE (a file kept in the
+# repository, e.g. docs/mutants/generator.tsv) every verdict is also appended to FILE
+# as `VERDICT<tab>file<tab>mutation @+line:column` (the place counted from the
+# mutated function's first line, so the record outlives edits elsewhere in the file),
+# and a mutant already recorded there is skipped: a run spread over many sessions and
+# scratch folders never repeats a mutant. The scratch clone is OUT_DIR/tree (from
+# the current commit of this checkout; its target directory is reused between
+# mutants).
 # Needs git, jq and patch.
 set -euo pipefail
 
@@ -28,6 +34,8 @@ out=$(realpath -m "$2")
 shift 3
 repo=$(git -C "$(dirname "$0")" rev-parse --show-toplevel)
 timeout_s=${MUTANTS_TIMEOUT:-3000}
+record=${MUTANTS_RECORD:+$(realpath -m "$MUTANTS_RECORD")}
+if [[ -n $record ]]; then touch "$record"; fi
 
 mkdir -p "$out"
 tree="$out/tree"
@@ -62,6 +70,12 @@ for ((i = 0; i < count; i++)); do
     file=$(jq -r ".[$i].file" "$list")
     line=$(jq -r ".[$i].span.start.line" "$list")
     what=$(jq -r ".[$i].name" "$list" | sed 's/^[^ ]* //')
+    # Where in its function (absolute when it is in none): tells apart the same
+    # mutation twice in one function.
+    at=$(jq -r ".[$i] | \"@+\(.span.start.line - (.function.span.start.line // 0)):\(.span.start.column)\"" "$list")
+    if [[ -n $record ]] && cut -f2,3 "$record" | grep -qxF "$file"$'\t'"$what $at"; then
+        continue
+    fi
     start=$SECONDS
     git -C "$tree" checkout -q -- .
     if ! jq -r ".[$i].diff" "$list" | (cd "$tree" && patch -s "$file"); then
@@ -77,5 +91,8 @@ for ((i = 0; i < count; i++)); do
     fi
     git -C "$tree" checkout -q -- .
     echo "$i $verdict $file:$line $what $((SECONDS - start))s" >>"$results"
+    if [[ -n $record ]]; then
+        printf '%s\t%s\t%s\n' "$verdict" "$file" "$what $at" >>"$record"
+    fi
 done
 echo "done: $(grep -c ' CAUGHT ' "$results") caught, $(grep -c ' MISSED ' "$results") missed, $(grep -c ' UNVIABLE ' "$results") unviable"
