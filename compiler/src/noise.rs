@@ -38,6 +38,9 @@
 //! 0.217 ± 0.077), which suggests that is what the original code did (cf. its
 //! known out-of-range draw). We keep the protocol as intended: the wrong class
 //! is drawn among the `C − 1` others, so exactly 20% of places are wrong.
+//!
+//! [`NoiseParams::validate`]: crate::noise::NoiseParams::validate
+//! [`simulate_evidence`]: crate::noise::simulate_evidence
 
 use crate::map::{ClassId, TopoMap};
 use rand::seq::index::sample;

@@ -7,7 +7,11 @@
 //! after [`QUIET_INTERVAL`] without any, and a last one when a step that printed
 //! anything (or took longer than [`LINE_INTERVAL`]) ends. [`Progress::stage`] prints a
 //! line announcing a stage in both cases. [`Progress::Hidden`] prints nothing.
-
+//!
+//! [`LINE_INTERVAL`]: crate::progress::LINE_INTERVAL
+//! [`QUIET_INTERVAL`]: crate::progress::QUIET_INTERVAL
+//! [`Progress::stage`]: crate::progress::Progress::stage
+//! [`Progress::Hidden`]: crate::progress::Progress::Hidden
 use std::io::IsTerminal;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
