@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use graphspn_compiler::decompose::{Decomposition, DecompositionStrategy};
 use graphspn_compiler::domain::{self, DomainError};
 use graphspn_compiler::family::AnyModel;
-use graphspn_compiler::instance::Instance;
+use graphspn_compiler::instance::{Instance, InstanceParams};
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::cold::Dropped;
 use graphspn_compiler::map::{TopoMap, cold};
@@ -229,16 +229,13 @@ pub fn decompositions_for(
             Ok(decs)
         }
         None => {
-            let dp = graphspn_compiler::decompose::DecompositionParams {
-                count,
+            let params = InstanceParams {
+                decompositions: count,
                 candidates: super::budget::candidates(count),
                 seed,
                 strategy,
             };
-            Ok(
-                graphspn_compiler::decompose::decompose_best(map, &model.templates, &dp)
-                    .with_context(|| format!("decomposing map {:?}", map.name))?,
-            )
+            Ok(params.decompose(model, map)?)
         }
     }
 }

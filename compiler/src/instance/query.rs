@@ -4,7 +4,7 @@
 use thiserror::Error;
 
 use super::{Instance, InstanceError, InstanceParams};
-use crate::decompose::{DecomposeError, DecompositionParams, decompose_best};
+use crate::decompose::{DecomposeError, Decomposition, DecompositionParams, decompose_best};
 use crate::interpreter::{Evaluator, Evidence, InferenceError, Marginals, Mpe};
 use crate::learn::Model;
 use crate::map::{ClassId, TopoMap};
@@ -51,6 +51,29 @@ pub enum InstanceQueryError {
     BadLabels(String),
 }
 
+impl InstanceParams {
+    /// The decompositions these settings choose for `map`: [`decompose_best`] over
+    /// `model.templates`, `decompositions` kept of `candidates`, seeded by `seed`. What
+    /// [`Instance::for_map`] and
+    /// [`ComponentInstance::for_map`](super::ComponentInstance::for_map) mix.
+    pub fn decompose(
+        &self,
+        model: &Model,
+        map: &TopoMap,
+    ) -> Result<Vec<Decomposition>, InstanceQueryError> {
+        let dp = DecompositionParams {
+            count: self.decompositions,
+            candidates: self.candidates,
+            seed: self.seed,
+            strategy: self.strategy,
+        };
+        decompose_best(map, &model.templates, &dp).map_err(|source| InstanceQueryError::Decompose {
+            map: map.name.clone(),
+            source,
+        })
+    }
+}
+
 impl Instance {
     /// Decomposes `map` with [`decompose_best`] over `model.templates`
     /// (`params.decompositions` kept of `params.candidates`, seeded by `params.seed`)
@@ -60,18 +83,7 @@ impl Instance {
         map: &TopoMap,
         params: &InstanceParams,
     ) -> Result<Instance, InstanceQueryError> {
-        let dp = DecompositionParams {
-            count: params.decompositions,
-            candidates: params.candidates,
-            seed: params.seed,
-            strategy: params.strategy,
-        };
-        let decompositions = decompose_best(map, &model.templates, &dp).map_err(|source| {
-            InstanceQueryError::Decompose {
-                map: map.name.clone(),
-                source,
-            }
-        })?;
+        let decompositions = params.decompose(model, map)?;
         Ok(Instance::build(model, map, decompositions)?)
     }
 }

@@ -47,7 +47,7 @@ use rayon::prelude::*;
 use super::build::edge_set;
 use super::grow::grow_decompositions;
 use super::{CopyStats, InstanceError, InstanceParams, InstanceQueryError};
-use crate::decompose::{Component, Decomposition, DecompositionParams, decompose_best};
+use crate::decompose::{Component, Decomposition};
 use crate::inputs::check_inputs;
 use crate::interpreter::{Marginals, Mpe};
 use crate::learn::Model;
@@ -134,25 +134,14 @@ pub fn estimated_component_bytes(
 }
 
 impl ComponentInstance {
-    /// Decomposes `map` with [`decompose_best`] (as [`super::Instance::for_map`] does,
-    /// same decompositions) and prepares the evaluator with no evidence.
+    /// Decomposes `map` ([`InstanceParams::decompose`]: the decompositions of
+    /// [`super::Instance::for_map`]) and prepares the evaluator with no evidence.
     pub fn for_map(
         model: &Model,
         map: &TopoMap,
         params: &InstanceParams,
     ) -> Result<Self, InstanceQueryError> {
-        let dp = DecompositionParams {
-            count: params.decompositions,
-            candidates: params.candidates,
-            seed: params.seed,
-            strategy: params.strategy,
-        };
-        let decompositions = decompose_best(map, &model.templates, &dp).map_err(|source| {
-            InstanceQueryError::Decompose {
-                map: map.name.clone(),
-                source,
-            }
-        })?;
+        let decompositions = params.decompose(model, map)?;
         Self::build(model, map, decompositions)
     }
 
