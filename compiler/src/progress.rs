@@ -12,6 +12,7 @@
 //! [`QUIET_INTERVAL`]: crate::progress::QUIET_INTERVAL
 //! [`Progress::stage`]: crate::progress::Progress::stage
 //! [`Progress::Hidden`]: crate::progress::Progress::Hidden
+
 use std::io::IsTerminal;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
