@@ -11,9 +11,9 @@
 #     --shard 0/16 --sharding round-robin --list --json --diff > list.json
 #   scripts/mutants-runner.sh list.json OUT_DIR -- cargo test --test generated_state
 #
-# OUT_DIR gets results.txt (one line per mutant: index, CAUGHT / MISSED / UNVIABLE (the
-# mutated crate does not compile; generated code that does not compile is CAUGHT),
-# place, what changed, seconds) and each mutant's test log; a re-run skips the
+# OUT_DIR gets results.txt (one line per mutant: index, verdict (see `judge` below),
+# place, what changed, seconds) and each mutant's test log; a test command still
+# running after MUTANTS_TIMEOUT seconds (default 3000) is stopped; a re-run skips the
 # mutants already in results.txt. With MUTANTS_RECORD=FILE (a file kept in the
 # repository, e.g. docs/mutants/generator.tsv) every verdict is also appended to FILE
 # as `VERDICT<tab>file<tab>mutation @+line:column` (the place counted from the
@@ -46,7 +46,7 @@ fi
 results="$out/results.txt"
 touch "$results"
 
-run() { (cd "$tree" && timeout "$timeout_s" "$@"); }
+run() { (cd "$tree" && timeout -k 30 "$timeout_s" "$@"); }
 
 # The package of a source file: its folder's Cargo.toml name (the root crate's for src/).
 package_of() {
@@ -64,9 +64,32 @@ if ! grep -q '^baseline ' "$results"; then
     echo "baseline ok $((SECONDS - start))s" >>"$results"
 fi
 
+# The verdict of the mutant now in the tree, its test log in $2: MISSED (the tests
+# pass), UNVIABLE (the mutated crate does not compile; generated code that does not
+# compile, a fixture or graphspn-generated, is CAUGHT), TIMEOUT (still running after
+# MUTANTS_TIMEOUT seconds: a mutant that hangs or blows up the generated code, which
+# counts as caught, as cargo-mutants counts it), BROKEN (the link failed: the build,
+# not the mutant) or CAUGHT.
+judge() {
+    local file=$1 log=$2 status=0
+    shift 2
+    run "$@" >"$log" 2>&1 || status=$?
+    if ((status == 0)); then
+        echo MISSED
+    elif ((status == 124 || status == 137)); then
+        echo TIMEOUT
+    elif grep -q "^error: could not compile \`$(package_of "$file")\` (lib" "$log"; then
+        echo UNVIABLE
+    elif grep -q "^error: linking with" "$log"; then
+        echo BROKEN
+    else
+        echo CAUGHT
+    fi
+}
+
 count=$(jq length "$list")
 for ((i = 0; i < count; i++)); do
-    grep -q "^$i " "$results" && continue
+    grep -qE "^$i (CAUGHT|MISSED|UNVIABLE|TIMEOUT) " "$results" && continue
     file=$(jq -r ".[$i].file" "$list")
     line=$(jq -r ".[$i].span.start.line" "$list")
     what=$(jq -r ".[$i].name" "$list" | sed 's/^[^ ]* //')
@@ -80,21 +103,25 @@ for ((i = 0; i < count; i++)); do
     git -C "$tree" checkout -q -- .
     if ! jq -r ".[$i].diff" "$list" | (cd "$tree" && patch -s "$file"); then
         verdict=NOPATCH
-    elif run "$@" >"$out/$i.log" 2>&1; then
-        verdict=MISSED
-    elif grep -q "^error: could not compile \`$(package_of "$file")\` (lib" "$out/$i.log"; then
-        # The mutated crate itself does not compile. Generated code that does not
-        # compile (a fixture, graphspn-generated) is a caught mutant.
-        verdict=UNVIABLE
     else
-        verdict=CAUGHT
+        verdict=$(judge "$file" "$out/$i.log" "$@")
+        if [[ $verdict == BROKEN ]]; then
+            # The linker failed on objects of an earlier build: rustc's incremental
+            # cache can keep a symbol that a recompiled unit no longer exports. Not a
+            # verdict on the mutant: drop the cache and run it once more.
+            echo "$i: the build broke (incremental cache), retried from scratch" >&2
+            rm -rf "$tree"/target/*/incremental
+            touch "$tree/$file"
+            verdict=$(judge "$file" "$out/$i.log" "$@")
+        fi
     fi
     git -C "$tree" checkout -q -- .
     echo "$i $verdict $file:$line $what $((SECONDS - start))s" >>"$results"
-    # A diff that does not apply says the list and the clone differ, nothing of the
-    # mutant: it is not recorded, so it runs again from a list that fits.
-    if [[ -n $record && $verdict != NOPATCH ]]; then
+    # A diff that does not apply says the list and the clone differ, and a build that
+    # broke twice says nothing of the mutant either: neither is recorded, so the
+    # mutant runs again (from a list that fits).
+    if [[ -n $record && $verdict != NOPATCH && $verdict != BROKEN ]]; then
         printf '%s\t%s\t%s\n' "$verdict" "$file" "$what $at" >>"$record"
     fi
 done
-echo "done: $(grep -c ' CAUGHT ' "$results") caught, $(grep -c ' MISSED ' "$results") missed, $(grep -c ' UNVIABLE ' "$results") unviable"
+echo "done: $(grep -c ' CAUGHT ' "$results") caught, $(grep -c ' TIMEOUT ' "$results") timeouts, $(grep -c ' MISSED ' "$results") missed, $(grep -c ' UNVIABLE ' "$results") unviable"
