@@ -74,10 +74,11 @@ fn same_inputs_give_byte_identical_output() {
     assert_eq!(t.generate().unwrap(), t.clone().generate().unwrap());
 }
 
-/// See [`no_panic_probe::link_check`]; the Cortex-M4F build of the same probe runs in
+/// See [`no_panic_probe::link_check`], here with every form (SIMD included); the
+/// Cortex-M4F build of the probe, with the forms a microcontroller gets, runs in
 /// `tests/mcu_qemu/`.
 #[cfg(all(target_os = "linux", target_arch = "x86_64"))]
 #[test]
 fn generated_code_links_without_std_alloc_or_any_panic_path() {
-    no_panic_probe::link_check(None);
+    no_panic_probe::link_check(None, no_panic_probe::HOST_FORMS);
 }
