@@ -131,3 +131,56 @@ fn headroom(peak: f64, limit: i32) -> i32 {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codegen::kernels::{Block, Plan};
+
+    /// `group_shift` keeps `2^s` times the group's mass at ones `Σ d·(rest at ones)`
+    /// below 1, the rest a product of values at ones. Normalised templates have every
+    /// value at ones 1 (within `1e-6`); here a block of value 2 at ones makes the rest
+    /// count.
+    #[test]
+    fn group_shift_keeps_the_mass_at_ones_below_one() {
+        let segment = |inputs: Vec<usize>, dims: Vec<usize>, w: Vec<f64>| Segment {
+            inputs,
+            dims,
+            weights: vec![w],
+        };
+        // Variables 0 and 1 (2 classes); block 0 sums variable 0's entries (2 at
+        // ones); block 1 (the root) sums (variable 1, block 0) with weights 0.3.
+        let plan = Plan {
+            n: 2,
+            classes: 2,
+            blocks: vec![
+                Block {
+                    sums: vec![2],
+                    segments: vec![segment(vec![0], vec![2], vec![1.0, 1.0])],
+                },
+                Block {
+                    sums: vec![3],
+                    segments: vec![segment(vec![1, 2], vec![2, 1], vec![0.3, 0.3])],
+                },
+            ],
+            root: (1, 0),
+        };
+        let code = SparseCode::fixed("t".into(), &plan);
+        let seg = &plan.blocks[1].segments[0];
+        // The group of variable 1's entry 0 (tuple 0): 0.3 times block 0 at ones.
+        let group = [(0, 0.3, 0.3)];
+        // 0.6 at ones: 2^0·0.6 < 1 ≤ 2^1·0.6.
+        assert_eq!(code.group_shift(seg, 0, &group), 0);
+        // The group of block 0's entry (tuple 0 and 1): 0.3 + 0.3 at ones.
+        let group = [(0, 0.3, 0.3), (1, 0.3, 0.3)];
+        assert_eq!(code.group_shift(seg, 1, &group), 0);
+        // Half the constants: 0.3 at ones, 2^1·0.3 < 1 ≤ 2^2·0.3.
+        let group = [(0, 0.15, 0.15)];
+        assert_eq!(code.group_shift(seg, 0, &group), 1);
+        // Float code is never scaled.
+        assert_eq!(
+            SparseCode::float("t".into(), &plan).group_shift(seg, 0, &group),
+            0
+        );
+    }
+}
