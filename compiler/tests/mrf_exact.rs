@@ -12,6 +12,7 @@ use graphspn_compiler::mrf::{
     Schedule, exact_inference, loopy_bp, variable_elimination,
 };
 use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
 
 #[test]
 fn variable_elimination_matches_enumeration() {
@@ -181,71 +182,84 @@ fn loopy_bp_is_close_to_exact_on_cold_sub_maps_for_the_tuned_mrfs() {
     // table entries (the triple factors over a sub-map's triangles can make
     // variable elimination too wide).
     let probe = Mrf3::train(&train, &CooccurrenceParams::default()).unwrap();
-    let mut subs = Vec::new();
-    for (k, m) in [
+    let maps = [
         &fr[0], &fr[5], &fr[11], &sa[3], &sa[20], &st[2], &st[9], &st[25],
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let sub = (0..m.num_places())
-            .map(|j| bfs_submap(m, (17 * k + 5 + j) % m.num_places(), 8))
-            .find(|sub| {
-                let fg = probe.factor_graph(sub, None).unwrap();
-                variable_elimination(&fg, 1 << 22).is_ok()
-            })
-            .unwrap_or_else(|| panic!("no feasible sub-map in {}", m.name));
-        subs.push(sub);
-    }
+    ];
+    let subs: Vec<TopoMap> = maps
+        .par_iter()
+        .enumerate()
+        .map(|(k, m)| {
+            (0..m.num_places())
+                .map(|j| bfs_submap(m, (17 * k + 5 + j) % m.num_places(), 8))
+                .find(|sub| {
+                    let fg = probe.factor_graph(sub, None).unwrap();
+                    variable_elimination(&fg, 1 << 22).is_ok()
+                })
+                .unwrap_or_else(|| panic!("no feasible sub-map in {}", m.name))
+        })
+        .collect();
+    let models: Vec<(Mrf2, Mrf3)> = TUNED
+        .iter()
+        .map(|&(_, form, coupling, _)| {
+            let p = CooccurrenceParams {
+                normalisation: form,
+                coupling,
+                ..CooccurrenceParams::default()
+            };
+            (
+                Mrf2::train(&train, &p).unwrap(),
+                Mrf3::train(&train, &p).unwrap(),
+            )
+        })
+        .collect();
+    // Every (setting, sub-map, noise level) on its own: side by side (exact inference
+    // of the MRF-3s takes most of this test's time), reported in this order.
+    let cases: Vec<(usize, usize, u8)> = (0..TUNED.len())
+        .flat_map(|t| (0..subs.len()).flat_map(move |s| [2, 4, 6].map(move |level| (t, s, level))))
+        .collect();
+    let results: Vec<(usize, f64, String)> = cases
+        .par_iter()
+        .map(|&(t, s, level)| {
+            let (name, form, coupling, exponent) = TUNED[t];
+            let sub = &subs[s];
+            let ev =
+                simulate_map_evidence(sub, NoiseLevel::new(level).unwrap(), s % 2 == 1, s as u64)
+                    .unwrap();
+            let rows = temper_rows(&ev.rows, exponent);
+            let (k, fg) = if name == "MRF-2" {
+                (0, models[t].0.factor_graph(sub, Some(&rows)).unwrap())
+            } else {
+                (1, models[t].1.factor_graph(sub, Some(&rows)).unwrap())
+            };
+            let exact = variable_elimination(&fg, 1 << 22).unwrap_or_else(|e| {
+                panic!("{name} on {}: exact inference refused ({e})", sub.name)
+            });
+            let r = loopy_bp(&fg, &bp).unwrap();
+            assert!(r.converged, "{name} BP did not converge on {}", sub.name);
+            let err = exact
+                .marginals
+                .iter()
+                .zip(&r.marginals)
+                .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
+                .fold(0.0, f64::max);
+            let dz = (exact.log_z - r.log_z_bethe).abs() / sub.num_places() as f64;
+            let line = format!(
+                "{name} {}^{coupling} ev^{exponent} NL{level} on {} ({} places, {} edges): \
+                 max |marginal error| {err:.2e}, |log Z − Bethe| per place {dz:.2e}",
+                form.name(),
+                sub.name,
+                sub.num_places(),
+                sub.num_edges(),
+            );
+            (k, err, line)
+        })
+        .collect();
     let mut checked = [0usize; 2];
     let mut worst = [0.0f64; 2];
-    for (name, form, coupling, exponent) in TUNED {
-        let p = CooccurrenceParams {
-            normalisation: form,
-            coupling,
-            ..CooccurrenceParams::default()
-        };
-        let m2 = Mrf2::train(&train, &p).unwrap();
-        let m3 = Mrf3::train(&train, &p).unwrap();
-        for (s, sub) in subs.iter().enumerate() {
-            for level in [2, 4, 6] {
-                let ev = simulate_map_evidence(
-                    sub,
-                    NoiseLevel::new(level).unwrap(),
-                    s % 2 == 1,
-                    s as u64,
-                )
-                .unwrap();
-                let rows = temper_rows(&ev.rows, exponent);
-                let (k, fg) = if name == "MRF-2" {
-                    (0, m2.factor_graph(sub, Some(&rows)).unwrap())
-                } else {
-                    (1, m3.factor_graph(sub, Some(&rows)).unwrap())
-                };
-                let exact = variable_elimination(&fg, 1 << 22).unwrap_or_else(|e| {
-                    panic!("{name} on {}: exact inference refused ({e})", sub.name)
-                });
-                let r = loopy_bp(&fg, &bp).unwrap();
-                assert!(r.converged, "{name} BP did not converge on {}", sub.name);
-                let err = exact
-                    .marginals
-                    .iter()
-                    .zip(&r.marginals)
-                    .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
-                    .fold(0.0, f64::max);
-                let dz = (exact.log_z - r.log_z_bethe).abs() / sub.num_places() as f64;
-                eprintln!(
-                    "{name} {}^{coupling} ev^{exponent} NL{level} on {} ({} places, {} edges): \
-                     max |marginal error| {err:.2e}, |log Z − Bethe| per place {dz:.2e}",
-                    form.name(),
-                    sub.name,
-                    sub.num_places(),
-                    sub.num_edges(),
-                );
-                checked[k] += 1;
-                worst[k] = worst[k].max(err);
-            }
-        }
+    for (k, err, line) in results {
+        eprintln!("{line}");
+        checked[k] += 1;
+        worst[k] = worst[k].max(err);
     }
     eprintln!(
         "worst BP marginal error over {} MRF-2 and {} MRF-3 checks: {:.2e}, {:.2e}",
