@@ -68,14 +68,19 @@ fi
 # pass), UNVIABLE (the mutated crate does not compile; generated code that does not
 # compile, a fixture or graphspn-generated, is CAUGHT), TIMEOUT (still running after
 # MUTANTS_TIMEOUT seconds: a mutant that hangs or blows up the generated code, which
-# counts as caught, as cargo-mutants counts it), BROKEN (the link failed: the build,
-# not the mutant) or CAUGHT.
+# counts as caught, as cargo-mutants counts it), PAUSED (stopped by the timer long
+# after it was due: the runner was paused, so the mutant runs again), BROKEN (the link
+# failed: the build, not the mutant) or CAUGHT.
 judge() {
-    local file=$1 log=$2 status=0
+    local file=$1 log=$2 status=0 start=$SECONDS
     shift 2
     run "$@" >"$log" 2>&1 || status=$?
     if ((status == 0)); then
         echo MISSED
+    elif ((status == 124 || status == 137)) && ((SECONDS - start > timeout_s + 60)); then
+        # Stopped far past the limit: the runner was paused (`kill -STOP`), and the
+        # timer fired when it went on. Not a verdict: the caller runs it again.
+        echo PAUSED
     elif ((status == 124 || status == 137)); then
         echo TIMEOUT
     elif grep -q "^error: could not compile \`$(package_of "$file")\` (lib" "$log"; then
@@ -114,6 +119,10 @@ for ((i = 0; i < count; i++)); do
             touch "$tree/$file"
             verdict=$(judge "$file" "$out/$i.log" "$@")
         fi
+        while [[ $verdict == PAUSED ]]; do
+            echo "$i: the runner was paused past the time limit, run again" >&2
+            verdict=$(judge "$file" "$out/$i.log" "$@")
+        done
     fi
     git -C "$tree" checkout -q -- .
     echo "$i $verdict $file:$line $what $((SECONDS - start))s" >>"$results"
