@@ -303,6 +303,11 @@ mod tests {
 
     /// Two independent binary variables with sum weights `w` each.
     fn pair(w: [f64; 2]) -> Spn {
+        pair_of(w, w)
+    }
+
+    /// [`pair`] with weights `w0` on variable 0's sum and `w1` on variable 1's.
+    fn pair_of(w0: [f64; 2], w1: [f64; 2]) -> Spn {
         let mut nodes = vec![];
         for var in 0..2 {
             nodes.push(Node::Leaf { var, class: 0 });
@@ -310,11 +315,11 @@ mod tests {
         }
         nodes.push(Node::Sum {
             children: vec![0, 1],
-            weights: w.to_vec(),
+            weights: w0.to_vec(),
         });
         nodes.push(Node::Sum {
             children: vec![2, 3],
-            weights: w.to_vec(),
+            weights: w1.to_vec(),
         });
         nodes.push(Node::Product {
             children: vec![4, 5],
@@ -332,6 +337,8 @@ mod tests {
     fn unnormalised_templates_take_log_space() {
         assert!(normalised(&pair([0.25, 0.75])));
         assert!(!normalised(&pair([0.5, 0.75])));
+        // Worth 1 at ones (2 · 0.5), but a sum worth 2: node values are not bounded by 1.
+        assert!(!normalised(&pair_of([1.0, 1.0], [0.25, 0.25])));
         assert!(matches!(
             numerics(&pair([0.5, 0.75]), Precision::F32, None),
             Numerics::Log

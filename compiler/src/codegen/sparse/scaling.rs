@@ -143,37 +143,45 @@ mod tests {
     /// count.
     #[test]
     fn group_shift_keeps_the_mass_at_ones_below_one() {
-        let segment = |inputs: Vec<usize>, dims: Vec<usize>, w: Vec<f64>| Segment {
+        let segment = |inputs: Vec<usize>, dims: Vec<usize>, weights: Vec<Vec<f64>>| Segment {
             inputs,
             dims,
-            weights: vec![w],
+            weights,
         };
-        // Variables 0 and 1 (2 classes); block 0 sums variable 0's entries (2 at
-        // ones); block 1 (the root) sums (variable 1, block 0) with weights 0.3.
+        // Variables 0 and 1 (2 classes); block 0 has two sums of variable 0's entries,
+        // 2 and 1 at ones; block 1 (the root) sums (variable 1, block 0) with weights
+        // 0.3.
         let plan = Plan {
             n: 2,
             classes: 2,
             blocks: vec![
                 Block {
-                    sums: vec![2],
-                    segments: vec![segment(vec![0], vec![2], vec![1.0, 1.0])],
+                    sums: vec![2, 3],
+                    segments: vec![segment(
+                        vec![0],
+                        vec![2],
+                        vec![vec![1.0, 1.0], vec![0.5, 0.5]],
+                    )],
                 },
                 Block {
-                    sums: vec![3],
-                    segments: vec![segment(vec![1, 2], vec![2, 1], vec![0.3, 0.3])],
+                    sums: vec![4],
+                    segments: vec![segment(vec![1, 2], vec![2, 2], vec![vec![0.3; 4]])],
                 },
             ],
             root: (1, 0),
         };
         let code = SparseCode::fixed("t".into(), &plan);
         let seg = &plan.blocks[1].segments[0];
-        // The group of variable 1's entry 0 (tuple 0): 0.3 times block 0 at ones.
+        // The group of variable 1's entry 0 with tuple 0 (block 0's first sum): 0.3
+        // times 2 at ones. 2^0·0.6 < 1 ≤ 2^1·0.6.
         let group = [(0, 0.3, 0.3)];
-        // 0.6 at ones: 2^0·0.6 < 1 ≤ 2^1·0.6.
         assert_eq!(code.group_shift(seg, 0, &group), 0);
-        // The group of block 0's entry (tuple 0 and 1): 0.3 + 0.3 at ones.
-        let group = [(0, 0.3, 0.3), (1, 0.3, 0.3)];
-        assert_eq!(code.group_shift(seg, 1, &group), 0);
+        // With tuple 1 (block 0's second sum, 1 at ones): 0.3, one shift.
+        assert_eq!(code.group_shift(seg, 0, &[(1, 0.3, 0.3)]), 1);
+        // The group of block 0's first sum (tuples 0 and 2: variable 1's entries 0
+        // and 1): 0.3 + 0.3 at ones.
+        let two = [(0, 0.3, 0.3), (2, 0.3, 0.3)];
+        assert_eq!(code.group_shift(seg, 1, &two), 0);
         // Half the constants: 0.3 at ones, 2^1·0.3 < 1 ≤ 2^2·0.3.
         let group = [(0, 0.15, 0.15)];
         assert_eq!(code.group_shift(seg, 0, &group), 1);
