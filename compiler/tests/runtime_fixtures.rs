@@ -26,7 +26,7 @@ use graphspn_compiler::decompose::Decomposition;
 use graphspn_compiler::instance::ComponentInstance;
 use graphspn_compiler::learn::{DenseParams, Model, dense_structure, uniform_spn};
 use graphspn_compiler::map::{ClassId, TopoMap};
-use graphspn_compiler::spn::Mixing;
+use graphspn_compiler::spn::{Mixing, Node};
 use graphspn_compiler::template::Template;
 use graphspn_compiler::treemix::{SpanningTrees, TreeInstance, TreeMixture};
 use petgraph::graph::NodeIndex;
@@ -276,6 +276,33 @@ fn dense(
     (m, g, decs)
 }
 
+/// `inputs` with each sum weight of its template SPNs set to exactly 0 with probability
+/// `p` (a sum's largest weight is kept), the rest renormalised.
+fn sparsified(
+    (mut m, mp, decs): (Model, TopoMap, Vec<Decomposition>),
+    p: f64,
+    seed: u64,
+) -> (Model, TopoMap, Vec<Decomposition>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    for spn in &mut m.spns {
+        for node in &mut spn.nodes {
+            if let Node::Sum { weights, .. } = node {
+                let keep = (0..weights.len())
+                    .max_by(|&a, &b| weights[a].total_cmp(&weights[b]))
+                    .unwrap_or(0);
+                for (i, w) in weights.iter_mut().enumerate() {
+                    if i != keep && rng.random_bool(p) {
+                        *w = 0.0;
+                    }
+                }
+                let total: f64 = weights.iter().sum();
+                weights.iter_mut().for_each(|w| *w /= total);
+            }
+        }
+    }
+    (m, mp, decs)
+}
+
 /// Random layered SPNs (exact-zero weights when `zeros`) on the star map.
 fn layered(classes: usize, zeros: bool, seed: u64) -> (Model, TopoMap, Vec<Decomposition>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -396,12 +423,20 @@ fn fixtures() -> Vec<Fixture> {
             dense(2, true, 1, 6),
             options(F32, true, Fixed),
         ),
-        // Ten classes: the fixed-point functions keep their adjoints scaled (a place's
+        // Four classes: the fixed-point functions keep their adjoints scaled (a place's
         // rows by 2, blocks by more), which two classes never need.
         components_fixture(
             "spn_dense_four_fixed",
             dense(4, true, 1, 9),
             options(F32, true, Fixed),
+        ),
+        // Half the weights exact zeros: the Three and the Pair have one-hot assignments
+        // of value 0 and go to log space. A state's fused rows then keep every normal
+        // entry: case 8's entries of 1e-30 decide its likelihood.
+        components_fixture(
+            "spn_sparse_scalar_f32",
+            sparsified(dense(4, true, 1, 9), 0.5, 9),
+            options(F32, true, Float),
         ),
         spn_fixture(
             "spn_layered_scalar_f64",

@@ -383,3 +383,62 @@ impl TemplateCode<'_> {
         quote!(#[inline(never)] fn #name(#x, lab: &mut [[u16; #n]; 1]) -> #t { let lab = &mut lab[0]; #body #n_root })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codegen::Precision;
+
+    /// `0.5·x0[0]·x1[0] + 0.5·x0[1]·x1[1] + 0·x0[0]·x1[1]`: leaves 0–3, products 4–6
+    /// (6 reached only through the zero weight), root sum 7.
+    fn with_zero_edge() -> Spn {
+        let mut nodes: Vec<Node> = (0..2)
+            .flat_map(|var| (0..2).map(move |class| Node::Leaf { var, class }))
+            .collect();
+        for children in [vec![0, 2], vec![1, 3], vec![0, 3]] {
+            nodes.push(Node::Product { children });
+        }
+        nodes.push(Node::Sum {
+            children: vec![4, 5, 6],
+            weights: vec![0.5, 0.5, 0.0],
+        });
+        Spn {
+            classes: vec![2, 2],
+            root: 7,
+            nodes,
+        }
+    }
+
+    /// A zero-weight edge is dropped, and with it every node only that edge reaches:
+    /// no statement computes it, in linear or log space (where its weight would be
+    /// `ln 0 = -∞`).
+    #[test]
+    fn zero_weight_edges_and_what_only_they_reach_emit_no_code() {
+        let spn = with_zero_edge();
+        spn.validate().unwrap();
+        let ops = ops(&spn);
+        assert_eq!(
+            ops.keys().copied().collect::<Vec<_>>(),
+            [0, 1, 2, 3, 4, 5, 7]
+        );
+        assert!(matches!(&ops[&7], Op::Sum(terms) if terms == &[(4, 0.5), (5, 0.5)]));
+        let l = Lit::new(Precision::F32);
+        for numerics in [
+            Numerics::Linear {
+                min_value: 0.0,
+                min_max: 0.0,
+            },
+            Numerics::Log,
+        ] {
+            let code = TemplateCode {
+                prefix: "t0_pair".into(),
+                spn: &spn,
+                numerics,
+                classes: 2,
+            };
+            let src = code.fwd(&l).to_string();
+            assert!(src.contains("n5") && !src.contains("n6"), "{src}");
+            assert!(!src.contains("INFINITY"), "{src}");
+        }
+    }
+}

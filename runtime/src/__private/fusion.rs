@@ -22,10 +22,13 @@
 //! The row that inference reads ([`Fused::observe`]'s second result) is `mantissa ·
 //! 2^-deficit`: the product scaled by the power of two `2^-top`, largest entry in
 //! `[1, 2)`, exact, with classes below `2^flush` of the best set to 0 (the model family
-//! chooses `flush`: [`Real::PRODUCT_FLUSH_EXP`] for GraphSPN templates, which multiply
-//! up to five evidence entries, so their products stay normal — subnormal products cost
-//! a step 20% on x86 after 10^6 observations; [`Real::MIN_EXP`] for tree mixtures,
-//! whose rows keep every normal entry: see `tree`). Such a class changes a place's
+//! chooses `flush`: [`Real::PRODUCT_FLUSH_EXP`] for GraphSPN models whose templates all
+//! compute in linear space, which multiply up to five evidence entries, so their
+//! products stay normal — subnormal products cost a step 20% on x86 after 10^6
+//! observations; [`Real::MIN_EXP`] for tree mixtures, whose rows keep every normal
+//! entry (see `tree`), and for GraphSPN models with a log-space template, which has
+//! assignments of probability 0: there a flushed class could make the likelihood 0
+//! where the rows' is not). Such a class changes a place's
 //! likelihood by less than `C · 2^flush` relatively; it changes a result only where the
 //! model's odds for it exceed `2^-flush` against the evidence. A label is never read as
 //! 0 that way: a labelled place's row enters only through its label's value, which

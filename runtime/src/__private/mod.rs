@@ -327,8 +327,9 @@ pub trait Real:
     /// would; see `tree`).
     const MIN_EXP: i32;
     /// Binary exponent below which a GraphSPN state's fused evidence reads as 0 relative
-    /// to the place's best class (`-24` for `f32`, `-200` for `f64`): a template multiplies
-    /// up to five evidence entries, and five such factors stay in the normal range.
+    /// to the place's best class (`-24` for `f32`, `-200` for `f64`) when every template
+    /// computes in linear space: a template multiplies up to five evidence entries, and
+    /// five such factors stay in the normal range.
     const PRODUCT_FLUSH_EXP: i32;
 }
 

@@ -4,6 +4,7 @@
 use proc_macro2::TokenStream;
 use quote::{format_ident, quote};
 
+use super::super::analysis::Numerics;
 use super::super::emit::{int, rt};
 use super::{Context, Tpl, component_int, lane_vector};
 
@@ -12,7 +13,10 @@ pub(super) fn state_api(tpls: &[Tpl], cx: &Context) -> TokenStream {
     let table = cx.simd_lanes > 1;
     let ty = state_type(cx, table);
     let cache = cache_methods(tpls, cx, table);
-    let updates = update_methods(cx, table);
+    // Log-space templates (a one-hot assignment of value 0) read every normal entry of
+    // a fused row: a class flushed to 0 there could make the likelihood 0.
+    let log_space = tpls.iter().any(|t| t.numerics == Numerics::Log);
+    let updates = update_methods(cx, table, log_space);
     let queries = query_methods(tpls, cx);
     let rt = rt();
     let new_table = if table {
@@ -299,9 +303,16 @@ fn cache_methods(tpls: &[Tpl], cx: &Context, table: bool) -> TokenStream {
 }
 
 /// The evidence updates: `set_evidence`, `observe`, `clear_evidence`, `set_all`
-/// (`table`: the state keeps scaled rows, see [`state_type`]).
-fn update_methods(cx: &Context, table: bool) -> TokenStream {
+/// (`table`: the state keeps scaled rows, see [`state_type`]; `log_space`: some
+/// template computes in log space, so `observe` keeps every normal entry of a fused row
+/// rather than flushing those below `2^PRODUCT_FLUSH_EXP` of the best class).
+fn update_methods(cx: &Context, table: bool, log_space: bool) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
+    let flush = if log_space {
+        quote!(MIN_EXP)
+    } else {
+        quote!(PRODUCT_FLUSH_EXP)
+    };
     let set_all_table = if table {
         quote!(#rt::scale_rows(&self.ev, None, &mut self.scaled);)
     } else {
@@ -335,7 +346,7 @@ fn update_methods(cx: &Context, table: bool) -> TokenStream {
                 Some(f) => *f,
                 None => #rt::Fused::ONES,
             };
-            match old.observe(row, <#t as #rt::Real>::PRODUCT_FLUSH_EXP) {
+            match old.observe(row, <#t as #rt::Real>::#flush) {
                 Some((f, r)) => {
                     self.store(place, r, f);
                     Ok(())
