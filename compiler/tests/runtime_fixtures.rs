@@ -243,6 +243,20 @@ fn star_map(classes: usize) -> TopoMap {
     )
 }
 
+/// The symmetric dense model of [`dense`] (one split per region) on map `g`.
+fn dense_on(g: TopoMap, classes: usize, seed: u64) -> (Model, TopoMap, Vec<Decomposition>) {
+    let params = DenseParams {
+        decompositions: 1,
+        sums: 2,
+        ..Default::default()
+    };
+    let m = dense_model_with(classes, true, &params, seed);
+    let decs = (0..3)
+        .map(|s| decompose(&g, &m.templates, seed + s))
+        .collect();
+    (m, g, decs)
+}
+
 /// The real model structure (dense region blocks), kept small: 2 sums per region.
 fn dense(
     classes: usize,
@@ -293,6 +307,40 @@ fn sparsified(
                 for (i, w) in weights.iter_mut().enumerate() {
                     if i != keep && rng.random_bool(p) {
                         *w = 0.0;
+                    }
+                }
+                let total: f64 = weights.iter().sum();
+                weights.iter_mut().for_each(|w| *w /= total);
+            }
+        }
+    }
+    (m, mp, decs)
+}
+
+/// `inputs` with each weight of a sum over products in its template SPNs set, with
+/// probability `p`, to the smallest weight of its sum (the rest renormalised), as
+/// smoothed counts leave most of a trained model's weights: a block row's terms then
+/// mostly sit at its floor.
+fn floored(
+    (mut m, mp, decs): (Model, TopoMap, Vec<Decomposition>),
+    p: f64,
+    seed: u64,
+) -> (Model, TopoMap, Vec<Decomposition>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    for spn in &mut m.spns {
+        let product: Vec<bool> = spn
+            .nodes
+            .iter()
+            .map(|n| matches!(n, Node::Product { .. }))
+            .collect();
+        for node in &mut spn.nodes {
+            if let Node::Sum { children, weights } = node
+                && children.iter().all(|&c| product[c as usize])
+            {
+                let floor = weights.iter().copied().fold(f64::INFINITY, f64::min);
+                for w in weights.iter_mut() {
+                    if rng.random_bool(p) {
+                        *w = floor;
                     }
                 }
                 let total: f64 = weights.iter().sum();
@@ -433,6 +481,11 @@ fn fixtures() -> Vec<Fixture> {
         // Half the weights exact zeros: the Three and the Pair have one-hot assignments
         // of value 0 and go to log space. A state's fused rows then keep every normal
         // entry: case 8's entries of 1e-30 decide its likelihood.
+        components_fixture(
+            "spn_floored_star_fixed",
+            floored(dense_on(star_map(4), 4, 10), 0.7, 10),
+            options(F32, true, Fixed),
+        ),
         components_fixture(
             "spn_sparse_scalar_f32",
             sparsified(dense(4, true, 1, 9), 0.5, 9),

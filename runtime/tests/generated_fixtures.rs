@@ -44,6 +44,7 @@ fixtures!(
     spn_dense_scalar_f32,
     spn_dense_fixed,
     spn_dense_four_fixed,
+    spn_floored_star_fixed,
     spn_sparse_scalar_f32,
     spn_layered_scalar_f64,
     spn_layered_simd_f32,
