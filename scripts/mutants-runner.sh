@@ -55,11 +55,31 @@ package_of() {
     sed -n 's/^name = "\(.*\)"/\1/p' "$tree/$dir/Cargo.toml" | head -1
 }
 
+# Drops what a build stopped midway (a killed or paused runner) can leave stale, the
+# workspace's own compiled crates and rustc's incremental caches: an object of the
+# earlier build can refer to a symbol that a recompiled unit no longer exports, and
+# the next link fails (`undefined hidden symbol … .llvm.…`). Dependencies stay built.
+fresh_build() {
+    rm -rf "$tree"/target/*/incremental
+    local packages
+    mapfile -t packages < <(cd "$tree" && cargo metadata -q --no-deps --format-version 1 |
+        jq -r '.packages[].name | "-p", .')
+    (cd "$tree" && cargo clean -q "${packages[@]}")
+}
+
 if ! grep -q '^baseline ' "$results"; then
     start=$SECONDS
     if ! run "$@" >"$out/baseline.log" 2>&1; then
-        echo "baseline fails: see $out/baseline.log" >&2
-        exit 1
+        if ! grep -q "^error: linking with" "$out/baseline.log"; then
+            echo "baseline fails: see $out/baseline.log" >&2
+            exit 1
+        fi
+        echo "baseline: the build broke (stale objects), retried from scratch" >&2
+        fresh_build
+        if ! run "$@" >"$out/baseline.log" 2>&1; then
+            echo "baseline fails: see $out/baseline.log" >&2
+            exit 1
+        fi
     fi
     echo "baseline ok $((SECONDS - start))s" >>"$results"
 fi
@@ -111,12 +131,11 @@ for ((i = 0; i < count; i++)); do
     else
         verdict=$(judge "$file" "$out/$i.log" "$@")
         if [[ $verdict == BROKEN ]]; then
-            # The linker failed on objects of an earlier build: rustc's incremental
-            # cache can keep a symbol that a recompiled unit no longer exports. Not a
-            # verdict on the mutant: drop the cache and run it once more.
-            echo "$i: the build broke (incremental cache), retried from scratch" >&2
-            rm -rf "$tree"/target/*/incremental
-            touch "$tree/$file"
+            # The linker failed on objects of an earlier build (see `fresh_build`).
+            # Not a verdict on the mutant: rebuild the workspace's crates and run it
+            # once more.
+            echo "$i: the build broke (stale objects), retried from scratch" >&2
+            fresh_build
             verdict=$(judge "$file" "$out/$i.log" "$@")
         fi
         while [[ $verdict == PAUSED ]]; do
