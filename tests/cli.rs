@@ -455,6 +455,34 @@ fn the_validated_graphspn_options_are_on_the_command_line() {
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     assert_eq!(m["settings"]["temperature"], 0.8);
+    // train --star-split fewest_images: the smaller Star (3,750 sum weights with 10
+    // classes, against 8,000 for the default most_images).
+    let small = dir.path().join("small.json");
+    run_ok(
+        bin()
+            .args([
+                "train",
+                "--buildings",
+                "Freiburg,Stockholm",
+                "--epochs",
+                "1",
+            ])
+            .args(["--star-split", "fewest_images", "--out"])
+            .arg(&small),
+    );
+    let weights = |m: &serde_json::Value| -> usize {
+        m["spns"][0]["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|n| n["weights"].as_array().map(Vec::len))
+            .sum()
+    };
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&small).unwrap()).unwrap();
+    assert_eq!(s["settings"]["structure"]["split_choice"], "fewest_images");
+    assert_eq!(m["settings"]["structure"]["split_choice"], "most_images");
+    assert_eq!((weights(&s), weights(&m)), (3750, 8000));
     // infer --strategy cover --mixing average: normalised rows, and not the posterior
     // mix (with evidence, the decompositions' posterior weights differ).
     let ev = dir.path().join("ev.json");

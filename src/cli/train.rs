@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Args;
 use graphspn_compiler::family::ModelFamily;
-use graphspn_compiler::learn::{Progress, TrainingSettings, train_model};
+use graphspn_compiler::learn::{Progress, SplitChoice, TrainingSettings, train_model};
 use graphspn_compiler::mrf::Normalisation;
 use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
@@ -47,6 +47,11 @@ pub struct TrainArgs {
     /// after training (in (0, 10]; < 1 flattens the learned statistics; default 1, none).
     #[arg(long)]
     temperature: Option<f64>,
+    /// The dense template structure's split of each region (`most_images`, the default:
+    /// the Star's 8,000 weights with 10 classes; `fewest_images`: its 3,750, about half
+    /// the multiply-adds of compiled code; `graphspn validate` searches both).
+    #[arg(long, value_parser = parse_split)]
+    star_split: Option<SplitChoice>,
     /// Model family: `graphspn` (the paper's template SPNs) or `tree-mixture` (a
     /// mixture of edge-covering spanning trees with one learned pairwise potential).
     #[arg(long, default_value = "graphspn", value_parser = parse_family)]
@@ -111,6 +116,14 @@ fn parse_normalisation(s: &str) -> Result<Normalisation, String> {
         .ok_or_else(|| format!("unknown potential {s:?}: joint, conditional, normalised or pmi"))
 }
 
+fn parse_split(s: &str) -> Result<SplitChoice, String> {
+    match s {
+        "most_images" => Ok(SplitChoice::MostImages),
+        "fewest_images" => Ok(SplitChoice::FewestImages),
+        _ => Err(format!("unknown split {s:?}: most_images or fewest_images")),
+    }
+}
+
 fn parse_mixing(s: &str) -> Result<Mixing, String> {
     Mixing::from_name(s).ok_or_else(|| format!("unknown mixing {s:?}: posterior or average"))
 }
@@ -137,6 +150,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
             args.decompositions_per_map.is_some(),
         ),
         ("--temperature", args.temperature.is_some()),
+        ("--star-split", args.star_split.is_some()),
     ];
     let (wrong, family) = match args.family {
         ModelFamily::Graphspn => (tree_flags.as_slice(), "tree-mixture"),
@@ -183,6 +197,9 @@ pub fn run(args: TrainArgs) -> Result<()> {
             }
             if let Some(t) = args.temperature {
                 settings.temperature = t;
+            }
+            if let Some(c) = args.star_split {
+                settings.structure.split_choice = c;
             }
             settings
                 .check()

@@ -78,6 +78,32 @@ pub fn query_args(m: &str, f: &str, t: &str) -> Vec<Case> {
             &["--coupling", "tree-mixture"],
         ),
         case(
+            "train trees with a star split",
+            &[
+                "train",
+                "--family",
+                "tree-mixture",
+                "--star-split",
+                "fewest_images",
+                "--out",
+                "{root}/t2.json",
+            ],
+            1,
+            &["--star-split", "graphspn"],
+        ),
+        case(
+            "train unknown star split",
+            &[
+                "train",
+                "--star-split",
+                "smallest",
+                "--out",
+                "{root}/t2.json",
+            ],
+            2,
+            &["--star-split", "smallest", "fewest_images"],
+        ),
+        case(
             "train unknown family",
             &["train", "--family", "forest", "--out", "{root}/t2.json"],
             2,
