@@ -47,9 +47,10 @@ pub struct TrainArgs {
     /// after training (in (0, 10]; < 1 flattens the learned statistics; default 1, none).
     #[arg(long)]
     temperature: Option<f64>,
-    /// The dense template structure's split of each region (`most_images`, the default:
-    /// the Star's 8,000 weights with 10 classes; `fewest_images`: its 3,750, about half
-    /// the multiply-adds of compiled code; `graphspn validate` searches both).
+    /// How the dense template structure splits each region (`most_images`, the
+    /// default: the Star's 8,000 weights with 10 classes; `fewest_images`: its 3,750,
+    /// about two thirds of the compiled code's multiply-adds; `graphspn validate`
+    /// searches both).
     #[arg(long, value_parser = parse_split)]
     star_split: Option<SplitChoice>,
     /// Model family: `graphspn` (the paper's template SPNs) or `tree-mixture` (a
