@@ -379,4 +379,49 @@ mod tests {
             }
         }
     }
+
+    /// Linear space needs both lower bounds above the threshold: the value's and the
+    /// max-product value's (MPE runs on the same linear functions). Two copies of
+    /// `(1 − ε, ε)²` mixed half and half: at the one-hot `(1, 1)` the value is `ε²`
+    /// (1.5e-20, above `f32`'s 1e-20) and the max-product value `ε²/2` (below).
+    #[test]
+    fn a_max_product_bound_below_the_threshold_takes_log_space() {
+        let eps = 1.5e-20f64.sqrt();
+        let mut nodes = vec![];
+        for var in 0..2 {
+            nodes.push(Node::Leaf { var, class: 0 });
+            nodes.push(Node::Leaf { var, class: 1 });
+        }
+        let mut products = vec![];
+        for _ in 0..2 {
+            for var in 0..2u32 {
+                nodes.push(Node::Sum {
+                    children: vec![2 * var, 2 * var + 1],
+                    weights: vec![1.0 - eps, eps],
+                });
+            }
+            let n = nodes.len() as u32;
+            nodes.push(Node::Product {
+                children: vec![n - 2, n - 1],
+            });
+            products.push(nodes.len() as u32 - 1);
+        }
+        nodes.push(Node::Sum {
+            children: products,
+            weights: vec![0.5, 0.5],
+        });
+        let spn = Spn {
+            classes: vec![2, 2],
+            root: nodes.len() as u32 - 1,
+            nodes,
+        };
+        spn.validate().unwrap();
+        let (value, max) = enumerated_minima(&spn).unwrap();
+        assert!(value >= 1e-20 && max < 1e-20, "{value:e} {max:e}");
+        assert_eq!(numerics(&spn, Precision::F32, None), Numerics::Log);
+        assert!(matches!(
+            numerics(&spn, Precision::F64, None),
+            Numerics::Linear { .. }
+        ));
+    }
 }
