@@ -243,22 +243,10 @@ fn star_map(classes: usize) -> TopoMap {
     )
 }
 
-/// The symmetric dense model of [`dense`] (one split per region) on map `g`.
-fn dense_on(g: TopoMap, classes: usize, seed: u64) -> (Model, TopoMap, Vec<Decomposition>) {
-    let params = DenseParams {
-        decompositions: 1,
-        sums: 2,
-        ..Default::default()
-    };
-    let m = dense_model_with(classes, true, &params, seed);
-    let decs = (0..3)
-        .map(|s| decompose(&g, &m.templates, seed + s))
-        .collect();
-    (m, g, decs)
-}
-
-/// The real model structure (dense region blocks), kept small: 2 sums per region.
-fn dense(
+/// The real model structure (dense region blocks) on map `g`, kept small: 2 sums per
+/// region, `splits` random splits per region, symmetric or not.
+fn dense_on(
+    g: TopoMap,
     classes: usize,
     symmetric: bool,
     splits: usize,
@@ -270,6 +258,19 @@ fn dense(
         ..Default::default()
     };
     let m = dense_model_with(classes, symmetric, &params, seed);
+    let decs = (0..3)
+        .map(|s| decompose(&g, &m.templates, seed + s))
+        .collect();
+    (m, g, decs)
+}
+
+/// [`dense_on`] a 7-place map with two triangles.
+fn dense(
+    classes: usize,
+    symmetric: bool,
+    splits: usize,
+    seed: u64,
+) -> (Model, TopoMap, Vec<Decomposition>) {
     let g = map(
         7,
         classes,
@@ -284,47 +285,16 @@ fn dense(
             (4, 6),
         ],
     );
-    let decs = (0..3)
-        .map(|s| decompose(&g, &m.templates, seed + s))
-        .collect();
-    (m, g, decs)
+    dense_on(g, classes, symmetric, splits, seed)
 }
 
-/// `inputs` with each sum weight of its template SPNs set to exactly 0 with probability
-/// `p` (a sum's largest weight is kept), the rest renormalised.
-fn sparsified(
+/// `inputs` with the weights of its template SPNs' sums changed by `edit` (seeded),
+/// which is given whether the sum is over products and says whether it changed the
+/// weights; a changed sum is renormalised.
+fn reweighted(
     (mut m, mp, decs): (Model, TopoMap, Vec<Decomposition>),
-    p: f64,
     seed: u64,
-) -> (Model, TopoMap, Vec<Decomposition>) {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    for spn in &mut m.spns {
-        for node in &mut spn.nodes {
-            if let Node::Sum { weights, .. } = node {
-                let keep = (0..weights.len())
-                    .max_by(|&a, &b| weights[a].total_cmp(&weights[b]))
-                    .unwrap_or(0);
-                for (i, w) in weights.iter_mut().enumerate() {
-                    if i != keep && rng.random_bool(p) {
-                        *w = 0.0;
-                    }
-                }
-                let total: f64 = weights.iter().sum();
-                weights.iter_mut().for_each(|w| *w /= total);
-            }
-        }
-    }
-    (m, mp, decs)
-}
-
-/// `inputs` with each weight of a sum over products in its template SPNs set, with
-/// probability `p`, to the smallest weight of its sum (the rest renormalised), as
-/// smoothed counts leave most of a trained model's weights: a block row's terms then
-/// mostly sit at its floor.
-fn floored(
-    (mut m, mp, decs): (Model, TopoMap, Vec<Decomposition>),
-    p: f64,
-    seed: u64,
+    mut edit: impl FnMut(&mut ChaCha8Rng, bool, &mut [f64]) -> bool,
 ) -> (Model, TopoMap, Vec<Decomposition>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for spn in &mut m.spns {
@@ -334,21 +304,58 @@ fn floored(
             .map(|n| matches!(n, Node::Product { .. }))
             .collect();
         for node in &mut spn.nodes {
-            if let Node::Sum { children, weights } = node
-                && children.iter().all(|&c| product[c as usize])
-            {
-                let floor = weights.iter().copied().fold(f64::INFINITY, f64::min);
-                for w in weights.iter_mut() {
-                    if rng.random_bool(p) {
-                        *w = floor;
-                    }
+            if let Node::Sum { children, weights } = node {
+                let over_products = children.iter().all(|&c| product[c as usize]);
+                if edit(&mut rng, over_products, weights) {
+                    let total: f64 = weights.iter().sum();
+                    weights.iter_mut().for_each(|w| *w /= total);
                 }
-                let total: f64 = weights.iter().sum();
-                weights.iter_mut().for_each(|w| *w /= total);
             }
         }
     }
     (m, mp, decs)
+}
+
+/// `inputs` with each sum weight of its template SPNs set to exactly 0 with probability
+/// `p` (a sum's largest weight is kept), the rest renormalised.
+fn sparsified(
+    inputs: (Model, TopoMap, Vec<Decomposition>),
+    p: f64,
+    seed: u64,
+) -> (Model, TopoMap, Vec<Decomposition>) {
+    reweighted(inputs, seed, |rng, _, weights| {
+        let keep = (0..weights.len())
+            .max_by(|&a, &b| weights[a].total_cmp(&weights[b]))
+            .unwrap_or(0);
+        for (i, w) in weights.iter_mut().enumerate() {
+            if i != keep && rng.random_bool(p) {
+                *w = 0.0;
+            }
+        }
+        true
+    })
+}
+
+/// `inputs` with each weight of a sum over products in its template SPNs set, with
+/// probability `p`, to the smallest weight of its sum (the rest renormalised), as
+/// smoothed counts leave most of a trained model's weights: a block row's terms then
+/// mostly sit at its floor.
+fn floored(
+    inputs: (Model, TopoMap, Vec<Decomposition>),
+    p: f64,
+    seed: u64,
+) -> (Model, TopoMap, Vec<Decomposition>) {
+    reweighted(inputs, seed, |rng, over_products, weights| {
+        if over_products {
+            let floor = weights.iter().copied().fold(f64::INFINITY, f64::min);
+            for w in weights.iter_mut() {
+                if rng.random_bool(p) {
+                    *w = floor;
+                }
+            }
+        }
+        over_products
+    })
 }
 
 /// Random layered SPNs (exact-zero weights when `zeros`) on the star map.
@@ -483,7 +490,7 @@ fn fixtures() -> Vec<Fixture> {
         // entry: case 8's entries of 1e-30 decide its likelihood.
         components_fixture(
             "spn_floored_star_fixed",
-            floored(dense_on(star_map(4), 4, 10), 0.7, 10),
+            floored(dense_on(star_map(4), 4, true, 1, 10), 0.7, 10),
             options(F32, true, Fixed),
         ),
         components_fixture(
