@@ -118,11 +118,8 @@ fn parse_normalisation(s: &str) -> Result<Normalisation, String> {
 }
 
 fn parse_split(s: &str) -> Result<SplitChoice, String> {
-    match s {
-        "most_images" => Ok(SplitChoice::MostImages),
-        "fewest_images" => Ok(SplitChoice::FewestImages),
-        _ => Err(format!("unknown split {s:?}: most_images or fewest_images")),
-    }
+    SplitChoice::from_name(s)
+        .ok_or_else(|| format!("unknown split {s:?}: most_images or fewest_images"))
 }
 
 fn parse_mixing(s: &str) -> Result<Mixing, String> {

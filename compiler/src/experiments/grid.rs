@@ -58,10 +58,10 @@ pub struct ValidationGrid {
     pub rounds: usize,
 }
 
-fn variant(name: &str, split: SplitChoice) -> (String, TrainingSettings) {
+fn variant(split: SplitChoice) -> (String, TrainingSettings) {
     let mut t = TrainingSettings::default();
     t.structure.split_choice = split;
-    (name.to_string(), t)
+    (split.name().to_string(), t)
 }
 
 impl ValidationGrid {
@@ -168,8 +168,8 @@ impl ValidationGrid {
         };
         ValidationGrid {
             graphspn_variants: vec![
-                variant("most_images", SplitChoice::MostImages),
-                variant("fewest_images", SplitChoice::FewestImages),
+                variant(SplitChoice::MostImages),
+                variant(SplitChoice::FewestImages),
             ],
             graphspn_exponents: vec![1.0, 2.0, 3.0, 4.0],
             graphspn_temperatures: vec![1.0, 0.8, 0.6],
@@ -223,7 +223,7 @@ impl ValidationGrid {
             ..BpOptions::default()
         };
         ValidationGrid {
-            graphspn_variants: vec![variant("most_images", SplitChoice::MostImages)],
+            graphspn_variants: vec![variant(SplitChoice::MostImages)],
             graphspn_exponents: vec![1.0, 2.0],
             graphspn_temperatures: vec![1.0, 0.8],
             graphspn_decompositions: vec![

@@ -202,6 +202,25 @@ pub enum SplitChoice {
     MostImages,
 }
 
+impl SplitChoice {
+    /// Both choices, the default last.
+    pub const ALL: [SplitChoice; 2] = [SplitChoice::FewestImages, SplitChoice::MostImages];
+
+    /// The name in model files, reports and on the command line (`fewest_images`,
+    /// `most_images`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SplitChoice::FewestImages => "fewest_images",
+            SplitChoice::MostImages => "most_images",
+        }
+    }
+
+    /// The choice named `name` ([`SplitChoice::name`]), if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.name() == name)
+    }
+}
+
 impl DenseParams {
     /// Every count against its documented domain.
     pub fn check(&self) -> Result<(), DomainError> {
