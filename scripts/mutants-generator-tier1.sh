@@ -5,22 +5,28 @@
 # answers by the runtime's own test (a mutant that emits wrong code fails there; when
 # the text is unchanged that test is the baseline's and is skipped); then the
 # compiler's fast codegen tests (codegen_source's fast ones among them) and its unit
-# tests. Survivors go on to the slower codegen_e2e tests. Each step builds incrementally: a mutant costs about 5-130 s.
+# tests. Survivors go on to the slower codegen_e2e tests. Each step builds incrementally
+# with the workspace's two crates at opt-level 1 (a mutant costs about 20-40 s; the
+# manifest's opt-level 3 made it about 100 s).
 #
 #   cargo mutants -p graphspn-compiler -f 'compiler/src/codegen/**/*.rs' \
 #     --list --json --diff > gen.json
 #   scripts/mutants-runner.sh gen.json OUT_DIR -- scripts/mutants-generator-tier1.sh
 set -euo pipefail
-export CARGO_PROFILE_DEV_PACKAGE_GRAPHSPN_COMPILER_OPT_LEVEL=1
-GRAPHSPN_UPDATE_FIXTURES=1 cargo test -q -p graphspn-compiler --test runtime_fixtures
+# Every step builds with the same settings, so nothing is built twice. (An environment
+# variable such as CARGO_PROFILE_DEV_PACKAGE_GRAPHSPN_COMPILER_OPT_LEVEL does not
+# override the manifest's per-package profile; `--config` does.)
+opt=(--config 'profile.dev.package.graphspn-compiler.opt-level=1'
+    --config 'profile.dev.package.graphspn-runtime.opt-level=1')
+GRAPHSPN_UPDATE_FIXTURES=1 cargo test -q "${opt[@]}" -p graphspn-compiler --test runtime_fixtures
 if ! git diff --quiet -- runtime/tests/fixtures; then
     echo "the mutant changed the fixtures' text:"
     git diff --stat -- runtime/tests/fixtures
-    cargo test -q -p graphspn-runtime --test generated_fixtures
+    cargo test -q "${opt[@]}" -p graphspn-runtime --test generated_fixtures
 fi
-cargo test -q -p graphspn-compiler --test codegen_report --test treemix_exact --test builder_errors
+cargo test -q "${opt[@]}" -p graphspn-compiler --test codegen_report --test treemix_exact --test builder_errors
 # The generator's input checks and forbidden constructs; codegen_source's snapshot is
 # left out (it fails on any change of the text) and so are its slow tests.
-cargo test -q -p graphspn-compiler --test codegen_source -- \
+cargo test -q "${opt[@]}" -p graphspn-compiler --test codegen_source -- \
     bad_inputs_are_reported no_unsafe_alloc_or_panic
-cargo test -q -p graphspn-compiler --lib
+cargo test -q "${opt[@]}" -p graphspn-compiler --lib
