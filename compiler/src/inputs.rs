@@ -59,6 +59,23 @@ pub enum InputsError {
     },
 }
 
+/// Checks that `map` can be labelled by `model`: the model's class names, in order,
+/// and at least one place. The first part of [`check_inputs`], for commands that read
+/// a map before they decompose it.
+pub fn check_map(model: &Model, map: &TopoMap) -> Result<(), InputsError> {
+    if map.classes != model.classes {
+        return Err(InputsError::ClassMismatch {
+            map: map.name.clone(),
+            map_classes: map.classes.names().to_vec(),
+            model_classes: model.classes.names().to_vec(),
+        });
+    }
+    if map.num_places() == 0 {
+        return Err(InputsError::EmptyMap(map.name.clone()));
+    }
+    Ok(())
+}
+
 /// Checks that `model`, `map` and `decompositions` fit together: the same class names,
 /// one valid SPN per template ([`check_template_spn`]), a map with places, at least one
 /// decomposition, and each decomposition a partition of the map's places into matches
@@ -68,13 +85,7 @@ pub fn check_inputs(
     map: &TopoMap,
     decompositions: &[Decomposition],
 ) -> Result<(), InputsError> {
-    if map.classes != model.classes {
-        return Err(InputsError::ClassMismatch {
-            map: map.name.clone(),
-            map_classes: map.classes.names().to_vec(),
-            model_classes: model.classes.names().to_vec(),
-        });
-    }
+    check_map(model, map)?;
     if model.templates.len() != model.spns.len() {
         return Err(InputsError::ModelShape {
             templates: model.templates.len(),
@@ -89,9 +100,6 @@ pub fn check_inputs(
             node: e.node(),
             what: e.to_string(),
         })?;
-    }
-    if map.num_places() == 0 {
-        return Err(InputsError::EmptyMap(map.name.clone()));
     }
     if decompositions.is_empty() {
         return Err(InputsError::NoDecompositions);

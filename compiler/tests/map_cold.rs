@@ -151,3 +151,20 @@ fn cold_reference_stats_match_data() {
     let all = cold::load_all(&dir).expect("load all");
     assert_eq!(MapStats::of_maps(&all), MapStats::cold_reference());
 }
+
+/// A sequence is named `building/sequence` however its folder is spelled: with `.`
+/// and `..` in the path, or through a path that ends in `.`.
+#[test]
+fn a_sequence_is_named_the_same_however_its_path_is_spelled() {
+    let dir = data_dir();
+    let plain = cold::load_sequence(dir.join("Freiburg/seq1_cloudy1")).unwrap();
+    assert_eq!(plain.name, "Freiburg/seq1_cloudy1");
+    for spelled in [
+        dir.join("Freiburg/seq1_cloudy1/."),
+        dir.join("Freiburg/seq1_cloudy2/../seq1_cloudy1"),
+        dir.join("Saarbrucken/../Freiburg/./seq1_cloudy1"),
+    ] {
+        let m = cold::load_sequence(&spelled).unwrap();
+        assert_eq!(m.name, plain.name, "{}", spelled.display());
+    }
+}

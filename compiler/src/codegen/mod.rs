@@ -159,6 +159,10 @@ pub struct CodegenOptions {
     pub max_stack_bytes: Option<usize>,
 }
 
+/// The most decompositions a GraphSPN module can mix: the generated tables give each
+/// component the set of decompositions holding it as one 64-bit mask.
+pub const MAX_COMPILED_DECOMPOSITIONS: usize = 64;
+
 /// Default stack budget of scalar code, see [`CodegenOptions::max_stack_bytes`].
 pub const DEFAULT_STACK_BYTES: usize = 16 * 1024;
 /// Default stack budget of SIMD code, see [`CodegenOptions::max_stack_bytes`].

@@ -441,8 +441,13 @@ fn report_markdown(
             let p = PAPER_TABLE1[(l - 1) as usize];
             let _ = writeln!(
                 s,
-                "| {l} | {gm:.3} ± {gs:.3} | {:.3} ± {:.3} | {im:.3} ± {is:.3} | {:.3} ± {:.3} |",
-                p.1.0, p.1.1, p.2.0, p.2.1
+                "| {l} | {} | {:.3} ± {:.3} | {} | {:.3} ± {:.3} |",
+                shown_mean_std(gm, gs),
+                p.1.0,
+                p.1.1,
+                shown_mean_std(im, is),
+                p.2.0,
+                p.2.1
             );
         }
     } else if !rep.table1.is_empty() {
@@ -458,7 +463,12 @@ fn report_markdown(
             cfg.rounds
         );
         for &(l, gm, gs, im, is) in &rep.table1 {
-            let _ = writeln!(s, "| {l} | {gm:.3} ± {gs:.3} | {im:.3} ± {is:.3} |");
+            let _ = writeln!(
+                s,
+                "| {l} | {} | {} |",
+                shown_mean_std(gm, gs),
+                shown_mean_std(im, is)
+            );
         }
     }
     let _ = writeln!(s, "\n## Figures\n");
@@ -494,4 +504,27 @@ fn report_markdown(
     );
     s.push_str(extra);
     s
+}
+
+/// `mean ± std` to three decimals, or `–` when no place was counted (the mean is
+/// not a number: e.g. no place got wrong evidence).
+fn shown_mean_std(mean: f64, std: f64) -> String {
+    if mean.is_finite() {
+        format!("{mean:.3} ± {std:.3}")
+    } else {
+        "–".to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shown_mean_std;
+
+    /// A statistic over no place (e.g. D_incorrect when no evidence was wrong) is shown
+    /// as a dash, not as `NaN ± 0.000`.
+    #[test]
+    fn a_mean_over_no_place_is_a_dash() {
+        assert_eq!(shown_mean_std(0.25, 0.125), "0.250 ± 0.125");
+        assert_eq!(shown_mean_std(f64::NAN, 0.0), "–");
+    }
 }

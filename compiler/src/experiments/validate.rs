@@ -74,6 +74,19 @@ pub struct Validation {
     pub seconds: Vec<(String, f64)>,
 }
 
+/// The name of a fold trained on `train` and validated on `validate`:
+/// `A+B → C` ([`Validation::folds`]; [`fold_buildings`] reads it back).
+pub fn fold_name(train: &[&str], validate: &str) -> String {
+    format!("{} → {validate}", train.join("+"))
+}
+
+/// The buildings of a fold named by [`fold_name`]: those trained on and the one
+/// validated on; `None` for a name of another form.
+pub fn fold_buildings(name: &str) -> Option<(Vec<&str>, &str)> {
+    let (train, validate) = name.split_once(" → ")?;
+    Some((train.split('+').collect(), validate))
+}
+
 /// One validation graph.
 struct VGraph {
     fold: usize,
@@ -414,7 +427,7 @@ pub fn validate_for(
             .map(|k| k.as_str())
             .collect();
         folds.push(Fold {
-            name: format!("{} → {v}", names.join("+")),
+            name: fold_name(&names, v),
             train,
             val,
             key: tb.wrapping_mul(16).wrapping_add(vb),
@@ -638,4 +651,22 @@ pub fn validate_for(
             trees,
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{fold_buildings, fold_name};
+
+    /// A fold's name gives back its buildings (what `--settings` checks a run's
+    /// training buildings against).
+    #[test]
+    fn a_fold_name_reads_back_as_its_buildings() {
+        let name = fold_name(&["Freiburg", "Saarbrucken"], "Stockholm");
+        assert_eq!(name, "Freiburg+Saarbrucken → Stockholm");
+        assert_eq!(
+            fold_buildings(&name),
+            Some((vec!["Freiburg", "Saarbrucken"], "Stockholm"))
+        );
+        assert_eq!(fold_buildings("Freiburg to Stockholm"), None);
+    }
 }

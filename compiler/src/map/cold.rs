@@ -322,6 +322,13 @@ pub fn load_sequence_limited(
     let rooms_path = dir.join("rooms.dat");
     let nodes = parse_nodes(&nodes_path, max_places)?;
     let rooms = parse_rooms(&rooms_path)?;
+    if let Some((&node, &(line, _))) = rooms.iter().find(|(id, _)| !nodes.contains_key(id)) {
+        return Err(MapError::StrayRoom {
+            path: rooms_path,
+            line,
+            node,
+        });
+    }
 
     let mut classes_of: BTreeMap<i64, ClassId> = BTreeMap::new();
     for (&id, node) in &nodes {
@@ -416,15 +423,35 @@ pub fn load_sequence_limited(
     Ok((kept, dropped))
 }
 
+/// `building/sequence`: the folder's last two names, read from its absolute path
+/// with `.` and `..` folded, so `--map .` and `--map ../seq` name the map as its
+/// full path does.
 fn sequence_name(dir: &Path) -> String {
-    let leaf = dir
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    match dir.parent().and_then(|p| p.file_name()) {
-        Some(parent) => format!("{}/{}", parent.to_string_lossy(), leaf),
-        None => leaf,
+    let names = path_names(dir);
+    match names.as_slice() {
+        [.., parent, leaf] => format!("{parent}/{leaf}"),
+        [leaf] => leaf.clone(),
+        [] => String::new(),
     }
+}
+
+/// The names along `path` made absolute (against the current folder), `.` dropped
+/// and each `..` folding the name before it: what `path` names, without touching
+/// the file system beyond the current folder.
+pub(crate) fn path_names(path: &Path) -> Vec<String> {
+    use std::path::Component;
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut names = Vec::new();
+    for c in absolute.components() {
+        match c {
+            Component::Normal(n) => names.push(n.to_string_lossy().into_owned()),
+            Component::ParentDir => {
+                names.pop();
+            }
+            Component::CurDir | Component::RootDir | Component::Prefix(_) => {}
+        }
+    }
+    names
 }
 
 /// Sequence folders (those holding a `nodes.dat`) of a building, sorted by name.

@@ -111,6 +111,16 @@ pub enum MapError {
         /// The node id.
         node: i64,
     },
+    /// `rooms.dat` names a node that `nodes.dat` does not have.
+    #[error("{}:{line}: node {node} is not in nodes.dat", path.display())]
+    StrayRoom {
+        /// The `rooms.dat` file.
+        path: PathBuf,
+        /// Line number (1-based).
+        line: usize,
+        /// The node id.
+        node: i64,
+    },
     /// The label of a node's room in `rooms.dat` differs from its label in `nodes.dat`.
     #[error(
         "{}:{line}: node {node} has label {label:?} but its room {room:?} says otherwise",

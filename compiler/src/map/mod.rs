@@ -27,8 +27,26 @@ pub type PlaceId = u32;
 
 /// The semantic classes a place can take, by name.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "stored::ClassSet")]
 pub struct ClassSet {
     names: Vec<String>,
+}
+
+/// A [`ClassSet`] as files hold it, checked by [`ClassSet::new`] when read (its own
+/// module, so serde's messages name it `ClassSet` too).
+mod stored {
+    /// The class names of a stored class set, unchecked.
+    #[derive(serde::Deserialize)]
+    pub(super) struct ClassSet {
+        pub(super) names: Vec<String>,
+    }
+}
+
+impl TryFrom<stored::ClassSet> for ClassSet {
+    type Error = String;
+    fn try_from(c: stored::ClassSet) -> Result<Self, String> {
+        ClassSet::new(c.names)
+    }
 }
 
 /// The paper's ten classes, in index order (listed with their COLD labels in `docs/FORMATS.md`).
@@ -37,13 +55,22 @@ pub const PAPER_CLASSES: [&str; 10] = [
 ];
 
 impl ClassSet {
-    /// A class set from names (must be non-empty and unique; checked by [`ClassSet::new`]).
+    /// A class set from names: at least one, at most 65,536 (a [`ClassId`] is 16-bit),
+    /// all distinct.
     pub fn new(names: Vec<String>) -> Result<Self, String> {
         if names.is_empty() {
             return Err("a class set needs at least one class".into());
         }
-        for (i, n) in names.iter().enumerate() {
-            if names[..i].contains(n) {
+        if names.len() > usize::from(ClassId::MAX) + 1 {
+            return Err(format!(
+                "{} classes: at most {} (class indices are 16-bit)",
+                names.len(),
+                usize::from(ClassId::MAX) + 1
+            ));
+        }
+        let mut seen = std::collections::HashSet::new();
+        for n in &names {
+            if !seen.insert(n.as_str()) {
                 return Err(format!("class name {n:?} appears twice"));
             }
         }

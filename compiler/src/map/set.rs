@@ -70,15 +70,19 @@ pub fn load_map_set_report(
     Ok((maps, ignored))
 }
 
-/// The name a map set is reported under: the file stem or the folder name.
+/// The name a map set is reported under: the file stem or the folder name (of the
+/// absolute path, so `.` is named as the folder it is).
 pub fn map_set_name(path: impl AsRef<Path>) -> String {
     let path = path.as_ref();
-    let name = if path.is_file() {
-        path.file_stem()
-    } else {
-        path.file_name()
-    };
-    name.map(|n| n.to_string_lossy().into_owned())
+    let mut names = cold::path_names(path);
+    if path.is_file()
+        && let Some(stem) = path.file_stem()
+        && let Some(last) = names.last_mut()
+    {
+        *last = stem.to_string_lossy().into_owned();
+    }
+    names
+        .pop()
         .filter(|n| !n.is_empty())
         .unwrap_or_else(|| path.display().to_string())
 }

@@ -57,7 +57,7 @@ pub use model::{MAX_TREES, TreeMixture};
 pub use spn::instance_spn;
 #[cfg(feature = "host")]
 pub use train::{NoiseFit, TreeTraining, train_tree_mixture};
-pub use trees::{NO_PARENT, RootedForest, SpanningTrees, check_inputs};
+pub use trees::{NO_PARENT, RootedForest, SpanningTrees, check_inputs, check_map};
 
 use graphspn_runtime::EvidenceError;
 use thiserror::Error;

@@ -319,6 +319,22 @@ fn find(sets: &mut [u32], x: u32) -> u32 {
     r
 }
 
+/// Checks that `map` can be labelled by `model`: the model's class names, in order,
+/// and at least one place (the map part of [`check_inputs`]).
+pub fn check_map(model: &TreeMixture, map: &TopoMap) -> Result<(), TreeMixError> {
+    if map.classes.names() != model.classes.names() {
+        return Err(TreeMixError::ClassMismatch {
+            map: map.name.clone(),
+            map_classes: map.classes.names().to_vec(),
+            model_classes: model.classes.names().to_vec(),
+        });
+    }
+    if map.num_places() == 0 {
+        return Err(TreeMixError::EmptyMap(map.name.clone()));
+    }
+    Ok(())
+}
+
 /// Checks that `model`, `map` and `trees` fit together: a valid model, the same class
 /// names, a map with places and at least one spanning forest, each of them a forest of
 /// `map`. The interpreter (`TreeInstance::build`) and the code generator both run it.
@@ -330,16 +346,7 @@ pub fn check_inputs(
     model
         .check("<model>")
         .map_err(|e| TreeMixError::Model(e.to_string()))?;
-    if map.classes.names() != model.classes.names() {
-        return Err(TreeMixError::ClassMismatch {
-            map: map.name.clone(),
-            map_classes: map.classes.names().to_vec(),
-            model_classes: model.classes.names().to_vec(),
-        });
-    }
-    if map.num_places() == 0 {
-        return Err(TreeMixError::EmptyMap(map.name.clone()));
-    }
+    check_map(model, map)?;
     if trees.is_empty() {
         return Err(TreeMixError::BadTrees(
             "a tree mixture needs at least one tree".into(),

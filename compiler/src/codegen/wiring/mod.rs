@@ -108,9 +108,10 @@ impl Context {
                 options.precision, options.vectorisation
             )));
         }
-        if d_count > 64 {
+        if d_count > super::MAX_COMPILED_DECOMPOSITIONS {
             return Err(CodegenError::BadOption(format!(
-                "at most 64 decompositions can be compiled, got {d_count}"
+                "at most {} decompositions can be compiled, got {d_count}",
+                super::MAX_COMPILED_DECOMPOSITIONS
             )));
         }
         Ok(Context {
