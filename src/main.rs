@@ -27,23 +27,27 @@ enum Command {
     Stats(cli::maps::StatsArgs),
     /// Draw a map as SVG: places coloured by class, placeholders as dashed rings.
     Render(cli::maps::RenderArgs),
-    /// Learn a model (one template SPN per sub-graph template) from annotated COLD maps.
+    /// Learn a model from annotated COLD maps: a GraphSPN (one template SPN per
+    /// sub-graph template) or a tree mixture (--family tree-mixture).
     Train(cli::train::TrainArgs),
     /// Posterior class marginals (or the MPE labelling) of every place of a map
-    /// given per-place evidence, through the instance GraphSPN.
+    /// given per-place evidence, exactly: through the instance GraphSPN or the tree
+    /// mixture.
     Infer(cli::infer::InferArgs),
-    /// Export the instance GraphSPN of a map as JSON (every node) or Graphviz dot.
+    /// Export the explicit instance SPN of a map (a GraphSPN's, or a tree mixture's
+    /// with its trees) as JSON (every node) or Graphviz dot.
     Instance(cli::instance::InstanceArgs),
     /// Run the paper's experiments (classification, placeholders, novelty) and
     /// write REPORT.md, results.json and SVG figures.
     Reproduce(cli::reproduce::ReproduceArgs),
-    /// Choose every model's settings (GraphSPN, tuned MRF-2/MRF-3) by
+    /// Choose every model's settings (tree mixture, GraphSPN, tuned MRF-2/MRF-3) by
     /// leave-one-training-building-out validation; writes VALIDATION.md and validation.json.
     Validate(cli::reproduce::ValidateArgs),
     /// Run the paper's protocol (classification, placeholders, novelty) on your own
     /// maps against the validated baselines; writes REPORT.md, results.json, figures.
     Evaluate(cli::evaluate::EvaluateArgs),
-    /// Compile the GraphSPN of a known map into a no_std Rust source file.
+    /// Compile the model (GraphSPN or tree mixture) of a known map into a no_std Rust
+    /// source file.
     Compile(cli::compile::CompileArgs),
     /// Decompose a map into the model's templates and write the decompositions file
     /// `compile --decompositions` and `infer --decompositions-file` read.

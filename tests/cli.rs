@@ -194,6 +194,32 @@ fn compile_writes_a_tree_mixture_module_and_reports_it() {
     }
 }
 
+/// `compile --map` takes a sequence name under the data folder, as `infer` does, and
+/// names the map `building/sequence` whichever way its folder was given.
+#[test]
+fn compile_resolves_a_sequence_name_under_the_data_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/cold-topomaps");
+    let compile = |map: &std::path::Path, out: &str| {
+        run_ok(
+            bin()
+                .args(["compile", "--count", "1", "--model"])
+                .arg(demo("model.json"))
+                .arg("--data")
+                .arg(&data)
+                .arg("--map")
+                .arg(map)
+                .arg("--out")
+                .arg(dir.path().join(out)),
+        );
+        std::fs::read_to_string(dir.path().join(out)).unwrap()
+    };
+    let by_name = compile(std::path::Path::new("Freiburg/seq1_cloudy1"), "a.rs");
+    let by_path = compile(&data.join("Freiburg/seq1_cloudy1/."), "b.rs");
+    assert!(by_name.contains("Freiburg/seq1_cloudy1"));
+    assert_eq!(by_name, by_path);
+}
+
 #[test]
 fn the_validated_graphspn_options_are_on_the_command_line() {
     let dir = tempfile::tempdir().unwrap();

@@ -155,6 +155,44 @@ pub fn load_any_model(path: &Path) -> Result<AnyModel> {
     Ok(AnyModel::load(path)?)
 }
 
+/// The outcome of a family's map check (`graphspn_compiler::inputs::check_map`,
+/// `graphspn_compiler::treemix::check_map`: the model's classes, at least one place)
+/// as the command's error, naming both files. Every command that reads a map for a
+/// model runs it right after reading the map.
+pub fn map_fits<E>(checked: Result<(), E>, map: &Path, model: &Path) -> Result<()>
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    checked.with_context(|| {
+        format!(
+            "--map {} does not fit --model {}",
+            map.display(),
+            model.display()
+        )
+    })
+}
+
+/// [`map_fits`] for a model of either family.
+pub fn any_map_fits(
+    model: &AnyModel,
+    map: &TopoMap,
+    map_path: &Path,
+    model_path: &Path,
+) -> Result<()> {
+    match model {
+        AnyModel::Graphspn(m) => map_fits(
+            graphspn_compiler::inputs::check_map(m, map),
+            map_path,
+            model_path,
+        ),
+        AnyModel::TreeMixture(t) => map_fits(
+            graphspn_compiler::treemix::check_map(t, map),
+            map_path,
+            model_path,
+        ),
+    }
+}
+
 /// Checks a number of decompositions given with `flag` before any work, against its
 /// domain ([`graphspn_compiler::domain::decompositions`]).
 pub fn check_decomposition_count(flag: &str, count: usize) -> Result<()> {
@@ -165,6 +203,15 @@ pub fn check_decomposition_count(flag: &str, count: usize) -> Result<()> {
             e.domain
         )
     })
+}
+
+/// Refuses the GraphSPN-only flags that were given (`(flag, given)`) for a model that
+/// holds a tree mixture.
+pub fn refuse_graphspn_flags(flags: &[(&str, bool)]) -> Result<()> {
+    if let Some((flag, _)) = flags.iter().find(|f| f.1) {
+        bail!("{flag} applies to GraphSPN models; --model holds a tree mixture");
+    }
+    Ok(())
 }
 
 /// A flag's value checked by a [`graphspn_compiler::domain`] function, as the flag's

@@ -7,16 +7,16 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use graphspn_compiler::codegen::{
-    AnyInputs, Arithmetic, Builder, CodeReport, Precision, Vectorisation, check_module_name,
-    is_generated_file,
+    AnyInputs, Arithmetic, Builder, CodeReport, MAX_COMPILED_DECOMPOSITIONS, Precision,
+    Vectorisation, check_module_name, is_generated_file,
 };
 use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
 
 use super::budget::{Budget, Work, read_map_within};
 use super::common::{
-    check_decomposition_count, count_decompositions_file, declare_map, decompositions_for,
-    flag_domain, load_any_model, parse_strategy,
+    any_map_fits, check_decomposition_count, count_decompositions_file, data_dir, declare_map,
+    decompositions_for, flag_domain, load_any_model, parse_strategy,
 };
 
 /// Largest map `compile` takes: the generator's limit (its tables index places with
@@ -44,9 +44,13 @@ pub struct CompileArgs {
     /// Model file (JSON, from `graphspn train`): a GraphSPN or a tree mixture.
     #[arg(long)]
     model: PathBuf,
-    /// Map: a JSON map file or a COLD sequence folder (nodes.dat + rooms.dat).
+    /// Map: a JSON map file, a COLD sequence folder (nodes.dat + rooms.dat), or a
+    /// sequence name under --data (e.g. Freiburg/seq1_cloudy1).
     #[arg(long)]
     map: PathBuf,
+    /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    #[arg(long)]
+    data: Option<PathBuf>,
     /// Decompositions file (from `graphspn decompose`); default: seeded decompositions.
     #[arg(long, conflicts_with_all = ["seed", "count"])]
     decompositions: Option<PathBuf>,
@@ -58,22 +62,25 @@ pub struct CompileArgs {
     /// alone). GraphSPN only.
     #[arg(long, value_parser = parse_strategy, conflicts_with = "decompositions")]
     strategy: Option<DecompositionStrategy>,
-    /// Number of decompositions mixed at the root (1..=1000, default 5), or of a tree
+    /// Number of decompositions mixed at the root (1..=64, default 5), or of a tree
     /// mixture's spanning trees (1..=64, default: the model's).
     #[arg(long)]
     count: Option<usize>,
     /// Generate f64 code (default f32).
     #[arg(long)]
     f64: bool,
-    /// Stack budget (bytes): fail when a generated entry point could need more.
+    /// Stack budget (bytes): fail when a generated entry point could need more
+    /// (default 16 KiB for --scalar / --fixed-point code, 64 KiB for SIMD code).
     #[arg(long)]
     max_stack_bytes: Option<usize>,
     /// Code for a target without float SIMD (Cortex-M, RISC-V MCUs): one component
     /// per call instead of SIMD lane groups.
     #[arg(long)]
     scalar: bool,
-    /// Fixed-point (Q0.32 integer) template kernels for a target without an FPU
-    /// (RV32IMAC, Cortex-M0+/M3): implies --scalar; GraphSPN, f32 only.
+    /// Fixed-point arithmetic for a target without an FPU (RV32IMAC, Cortex-M0+/M3):
+    /// a GraphSPN's template kernels in Q0.32 integers, a tree mixture's messages in
+    /// fixed point where its potentials allow and its other arithmetic in the runtime's
+    /// own soft-float `f32`; implies --scalar; f32 only.
     #[arg(long, conflicts_with = "f64")]
     fixed_point: bool,
     /// Name of the module the file is meant for (a Rust identifier; shown in the
@@ -92,6 +99,17 @@ pub struct CompileArgs {
     force: bool,
 }
 
+/// Refuses more decompositions than a module can mix; `what` names the flag (and the
+/// file) they come from.
+fn check_compiled_count(what: &str, count: usize) -> Result<()> {
+    if count > MAX_COMPILED_DECOMPOSITIONS {
+        bail!(
+            "{what}: at most {MAX_COMPILED_DECOMPOSITIONS} decompositions can be compiled (the generated tables hold each component's decompositions as a 64-bit mask)"
+        );
+    }
+    Ok(())
+}
+
 /// Whether `path` holds exactly `content`.
 fn holds(path: &Path, content: &[u8]) -> bool {
     std::fs::read(path).is_ok_and(|old| old == content)
@@ -102,13 +120,7 @@ pub fn run(args: CompileArgs) -> Result<()> {
     check_module_name(&args.module).context("--module")?;
     let mut outputs = Outputs::new(args.force);
     outputs.input("--model", &args.model);
-    if !args.map.exists() {
-        bail!(
-            "--map {}: no such map (give a JSON map or a COLD sequence folder)",
-            args.map.display()
-        );
-    }
-    let map_path = declare_map(&args.map, args.map.clone(), &mut outputs)?;
+    let map_path = declare_map(&args.map, data_dir(args.data.clone()), &mut outputs)?;
     if let Some(d) = &args.decompositions {
         outputs.input("--decompositions", d);
     }
@@ -131,6 +143,10 @@ pub fn run(args: CompileArgs) -> Result<()> {
         AnyModel::Graphspn(_) => match &args.decompositions {
             Some(f) => {
                 let count = count_decompositions_file("--decompositions", f)?;
+                check_compiled_count(
+                    &format!("--decompositions {}: holds {count} decompositions", f.display()),
+                    count,
+                )?;
                 Budget::new(
                     format!("--decompositions {} ({count} decompositions)", f.display()),
                     Work::Decompositions {
@@ -142,6 +158,7 @@ pub fn run(args: CompileArgs) -> Result<()> {
             None => {
                 let count = args.count.unwrap_or(5);
                 check_decomposition_count("--count", count)?;
+                check_compiled_count(&format!("--count {count}"), count)?;
                 Budget::new(format!("--count {count}"), Work::decompositions(count))
             }
         },
@@ -169,7 +186,8 @@ pub fn run(args: CompileArgs) -> Result<()> {
         "at most 65535 places can be compiled (the generated code indexes places with 16 bits)",
     );
     let map = read_map_within("--map", &map_path, &budget)?.map;
-    let mut b = Builder::new(&args.model, &args.map)
+    any_map_fits(&model, &map, &map_path, &args.model)?;
+    let mut b = Builder::new(&args.model, &map_path)
         .module_name(&args.module)
         .out_file(&args.out)
         .overwrite(args.force)

@@ -8,7 +8,7 @@ use clap::Args;
 
 use super::budget::{Budget, Work, read_map_within};
 use super::common::{
-    check_decomposition_count, data_dir, declare_map, decompositions_for, load_model,
+    check_decomposition_count, data_dir, declare_map, decompositions_for, load_model, map_fits,
     parse_strategy,
 };
 use super::output::{Outputs, write_files};
@@ -63,6 +63,11 @@ pub fn run(args: DecomposeArgs) -> Result<()> {
         Work::decompositions(args.count),
     );
     let loaded = read_map_within("--map", &map_path, &budget)?;
+    map_fits(
+        graphspn_compiler::inputs::check_map(&model, &loaded.map),
+        &map_path,
+        &args.model,
+    )?;
     let decs = decompositions_for(
         &model,
         &loaded.map,

@@ -205,6 +205,9 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
             "--train: give at least two training buildings (the validation trains on one and validates on another), or none for the three COLD buildings"
         );
     }
+    if let Some(p) = &args.settings {
+        outputs.input("--settings", p);
+    }
     outputs.folder("--out", &args.run.out)?;
     let mut cfg = args.run.config(false);
     args.protocol.apply(&mut cfg)?;
@@ -218,8 +221,8 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
 
     let chosen = match &args.settings {
         Some(p) => {
-            outputs.input("--settings", p);
-            let all = read_settings(p)?;
+            let saved = read_settings(p)?;
+            let all = &saved.settings;
             let key = match (&args.settings_of, all.len()) {
                 (Some(k), _) => k.clone(),
                 (None, 1) => all.keys().next().cloned().unwrap_or_default(),
@@ -236,7 +239,8 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
                     all.keys().cloned().collect::<Vec<_>>().join(", ")
                 );
             };
-            Some(s.clone())
+            let s = s.clone();
+            Some((saved, key, s))
         }
         None => None,
     };
@@ -342,6 +346,9 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
                     classes.names()
                 );
             }
+            if set.role == SetRole::Test && m.places().next().is_none() {
+                bail!("{flag} {given}: map {:?} has no places", m.name);
+            }
             if set.role == SetRole::Test
                 && let Some(p) = m.places().find(|p| p.class.is_none())
             {
@@ -377,7 +384,9 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
             .map(str::to_string)
             .collect(),
     );
-    if let Some(s) = chosen {
+    if let Some((saved, key, s)) = chosen {
+        let training = cfg.train_buildings.clone().unwrap_or_default();
+        saved.check_training(&key, &training)?;
         cfg.settings = Some(
             cfg.test_buildings
                 .iter()

@@ -18,8 +18,9 @@ use serde_json::json;
 
 use super::budget::{Budget, Work, candidates, read_map_within};
 use super::common::{
-    check_decomposition_count, component_instance_of, count_decompositions_file, data_dir,
-    declare_map, decompositions_for, flag_domain, load_any_model, parse_strategy,
+    any_map_fits, check_decomposition_count, component_instance_of, count_decompositions_file,
+    data_dir, declare_map, decompositions_for, flag_domain, load_any_model, parse_strategy,
+    refuse_graphspn_flags,
 };
 use super::evidence::read_evidence;
 use super::output::{Outputs, write_files};
@@ -188,14 +189,11 @@ pub fn run(args: InferArgs) -> Result<()> {
             }
         }
         AnyModel::TreeMixture(model) => {
-            let gspn_only = [
+            refuse_graphspn_flags(&[
                 ("--decompositions", args.decompositions.is_some()),
                 ("--decompositions-file", args.decompositions_file.is_some()),
                 ("--strategy", args.strategy.is_some()),
-            ];
-            if let Some((flag, _)) = gspn_only.iter().find(|f| f.1) {
-                bail!("{flag} applies to GraphSPN models; --model holds a tree mixture");
-            }
+            ])?;
             if let Some(t) = args.trees {
                 flag_domain("--trees", domain::trees("trees", t))?;
             }
@@ -209,9 +207,15 @@ pub fn run(args: InferArgs) -> Result<()> {
     };
     let loaded = read_map_within("--map", &map_path, &budget)?;
     let map = &loaded.map;
+    any_map_fits(&model, map, &map_path, &args.model)?;
     let rows = match &args.evidence {
         Some(p) => read_evidence(p, map, &loaded.dropped)?,
         None => vec![vec![1.0; map.classes.len()]; map.num_places()],
+    };
+    // What the queries ran on, for their errors (zero likelihood names the file).
+    let on = match &args.evidence {
+        Some(p) => format!("the evidence of --evidence {}", p.display()),
+        None => "no evidence".to_string(),
     };
     let (m, mpe, mixture) = match &model {
         AnyModel::Graphspn(model) => {
@@ -228,11 +232,17 @@ pub fn run(args: InferArgs) -> Result<()> {
             // Component-wise evaluation against the shared template networks: memory
             // linear in places (the explicit instance SPN copies every weight per component).
             let mut im = component_instance_of(model, map, decs)?;
-            im.set_all_evidence(&rows).context("setting the evidence")?;
+            im.set_all_evidence(&rows)
+                .with_context(|| format!("setting {on}"))?;
             let mixing = args.mixing.unwrap_or_default();
-            let m = im.marginals_mixed(mixing).context("computing marginals")?;
+            let m = im
+                .marginals_mixed(mixing)
+                .with_context(|| format!("computing marginals of {on}"))?;
             let mpe = match args.mpe {
-                true => Some(im.mpe(&[]).context("computing the MPE labelling")?),
+                true => Some(
+                    im.mpe(&[])
+                        .with_context(|| format!("computing the MPE labelling of {on}"))?,
+                ),
                 false => None,
             };
             (
@@ -249,15 +259,15 @@ pub fn run(args: InferArgs) -> Result<()> {
             let mixing = args.mixing.unwrap_or(model.mixing);
             let mut inst = TreeInstance::with_covering_trees(&model, map, args.seed)?;
             inst.set_all_evidence(&rows)
-                .context("setting the evidence")?;
+                .with_context(|| format!("setting {on}"))?;
             let m = inst
                 .marginals_mixed(mixing)
-                .context("computing marginals")?
+                .with_context(|| format!("computing marginals of {on}"))?
                 .mixed;
             let mpe = match args.mpe {
                 true => Some(
                     inst.mpe(&vec![None; map.num_places()])
-                        .context("computing the MPE labelling")?,
+                        .with_context(|| format!("computing the MPE labelling of {on}"))?,
                 ),
                 false => None,
             };

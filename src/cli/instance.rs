@@ -9,10 +9,11 @@ use clap::{Args, ValueEnum};
 use super::budget::{Budget, Work, read_map_within};
 use super::common::{
     check_decomposition_count, count_decompositions_file, data_dir, declare_map,
-    decompositions_for, instance_of, load_any_model, parse_strategy,
+    decompositions_for, instance_of, load_any_model, map_fits, parse_strategy,
+    refuse_graphspn_flags,
 };
 use super::output::{Outputs, emit};
-use anyhow::bail;
+
 use graphspn_compiler::decompose::DecompositionStrategy;
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::instance::{spn_dot, tree_instance_json};
@@ -50,19 +51,20 @@ pub struct InstanceArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "json")]
     format: InstanceFormat,
-    /// Number of decompositions mixed by the instance (1..=1000).
-    #[arg(long, default_value_t = 5)]
-    decompositions: usize,
+    /// GraphSPN: number of decompositions mixed by the instance (1..=1000; default 5).
+    #[arg(long)]
+    decompositions: Option<usize>,
     /// Read the decompositions from this file (written by `graphspn decompose`).
     #[arg(long, conflicts_with_all = ["decompositions", "seed"])]
     decompositions_file: Option<PathBuf>,
-    /// Seed of the decompositions.
+    /// Seed of the decompositions, or of a tree mixture's spanning trees.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// How decompositions are drawn: `paper` (the authors' scheme) or `cover` (frontier
-    /// places join their neighbour's component rather than stay alone).
-    #[arg(long, default_value = "paper", value_parser = parse_strategy, conflicts_with = "decompositions_file")]
-    strategy: DecompositionStrategy,
+    /// GraphSPN: how decompositions are drawn: `paper` (the authors' scheme, the
+    /// default) or `cover` (frontier places join their neighbour's component rather
+    /// than stay alone).
+    #[arg(long, value_parser = parse_strategy, conflicts_with = "decompositions_file")]
+    strategy: Option<DecompositionStrategy>,
     /// Output file (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -74,7 +76,9 @@ pub struct InstanceArgs {
 /// Runs `graphspn instance`.
 pub fn run(args: InstanceArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.force);
-    check_decomposition_count("--decompositions", args.decompositions)?;
+    if let Some(d) = args.decompositions {
+        check_decomposition_count("--decompositions", d)?;
+    }
     outputs.input("--model", &args.model);
     let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     if let Some(f) = &args.decompositions_file {
@@ -86,11 +90,11 @@ pub fn run(args: InstanceArgs) -> Result<()> {
     let model = match load_any_model(&args.model)? {
         AnyModel::Graphspn(m) => m,
         AnyModel::TreeMixture(t) => {
-            if args.decompositions_file.is_some() {
-                bail!(
-                    "--decompositions-file applies to GraphSPN models; --model holds a tree mixture"
-                );
-            }
+            refuse_graphspn_flags(&[
+                ("--decompositions", args.decompositions.is_some()),
+                ("--decompositions-file", args.decompositions_file.is_some()),
+                ("--strategy", args.strategy.is_some()),
+            ])?;
             let budget = Budget::new(
                 format!("the explicit SPN of {} trees", t.trees),
                 Work::TreeSpn {
@@ -103,6 +107,11 @@ pub fn run(args: InstanceArgs) -> Result<()> {
             );
             let loaded = read_map_within("--map", &map_path, &budget)?;
             let map = &loaded.map;
+            map_fits(
+                graphspn_compiler::treemix::check_map(&t, map),
+                &map_path,
+                &args.model,
+            )?;
             let inst = TreeInstance::with_covering_trees(&t, map, args.seed)?;
             let spn = instance_spn(&inst)?;
             let text = match args.format {
@@ -125,6 +134,7 @@ pub fn run(args: InstanceArgs) -> Result<()> {
     };
     // The decompositions step; the explicit SPN of the decompositions made is
     // estimated exactly before it is built ([`instance_of`]).
+    let count = args.decompositions.unwrap_or(5);
     let budget = match &args.decompositions_file {
         Some(f) => {
             let count = count_decompositions_file("--decompositions-file", f)?;
@@ -140,19 +150,24 @@ pub fn run(args: InstanceArgs) -> Result<()> {
             )
         }
         None => Budget::new(
-            format!("--decompositions {}", args.decompositions),
-            Work::decompositions(args.decompositions),
+            format!("--decompositions {count}"),
+            Work::decompositions(count),
         ),
     };
     let loaded = read_map_within("--map", &map_path, &budget)?;
     let map = &loaded.map;
+    map_fits(
+        graphspn_compiler::inputs::check_map(&model, map),
+        &map_path,
+        &args.model,
+    )?;
     let decs = decompositions_for(
         &model,
         map,
         args.decompositions_file.as_deref(),
-        args.decompositions,
+        count,
         args.seed,
-        args.strategy,
+        args.strategy.unwrap_or(DecompositionStrategy::Paper),
     )?;
     let inst = instance_of(&model, map, decs)?;
     let names: Vec<String> = model.templates.iter().map(|t| t.name.clone()).collect();

@@ -388,6 +388,13 @@ impl Outputs {
                     link_target(path)
                 );
             }
+            // A link is never "a file the command generated": only --force replaces it.
+            if m.file_type().is_symlink() {
+                bail!(
+                    "{flag} {shown}: is a symbolic link to {}; pass --force to replace the link",
+                    link_target(path)
+                );
+            }
             if !replace_ok {
                 bail!("{flag} {shown}: exists; pass --force to replace it");
             }

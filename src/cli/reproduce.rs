@@ -10,9 +10,12 @@ use graphspn_compiler::domain;
 use graphspn_compiler::experiments::config::ReproduceConfig;
 use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
 use graphspn_compiler::experiments::grid::ValidationGrid;
+use graphspn_compiler::experiments::protocol::training_buildings;
 use graphspn_compiler::experiments::report::write_outputs;
 use graphspn_compiler::experiments::reproduce::{load_data, run};
-use graphspn_compiler::experiments::validate::{DecompositionChoice, ModelSettings, validate_for};
+use graphspn_compiler::experiments::validate::{
+    DecompositionChoice, ModelSettings, fold_buildings, validate_for,
+};
 use graphspn_compiler::experiments::validation_report::validation_markdown;
 use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
@@ -52,13 +55,9 @@ pub struct ReproduceArgs {
     /// Candidate decompositions scored (default 15, or 3 × decompositions if larger).
     #[arg(long)]
     candidates: Option<usize>,
-    /// Test buildings, comma-separated (default: all three, minus --exclude).
+    /// Test buildings, comma-separated (default: all three).
     #[arg(long, value_delimiter = ',')]
     buildings: Option<Vec<String>>,
-    /// Leave this building out entirely (validation on training buildings only:
-    /// each remaining building is tested with a model trained on the other).
-    #[arg(long)]
-    exclude: Option<String>,
     /// Test maps per building.
     #[arg(long)]
     maps: Option<usize>,
@@ -131,7 +130,7 @@ pub struct ProtocolOptions {
     /// Noise levels to run, comma-separated (default: 1..6).
     #[arg(long, value_delimiter = ',')]
     pub levels: Option<Vec<u8>>,
-    /// Evidence rounds per map and level (default 3; 1 with --quick).
+    /// Evidence rounds per map and level (default 3; 1 with `reproduce --quick`).
     #[arg(long)]
     pub rounds: Option<usize>,
     /// Skip the novelty-detection experiment.
@@ -210,21 +209,63 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
 }
 
 /// A validation.json as `--settings` reads it: the chosen settings per test building
-/// (and the validation that chose them, not read).
+/// and the validation that chose them (only its folds are read).
 #[derive(serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SettingsFile {
     settings: BTreeMap<String, ModelSettings>,
     #[serde(default)]
-    #[allow(dead_code)]
-    validation: serde::de::IgnoredAny,
+    validation: Vec<ValidationRecord>,
+}
+
+/// One test building's validation in a validation.json: its folds name the training
+/// buildings (`A+B → C`: trained on A and B, validated on C).
+#[derive(serde::Deserialize)]
+struct ValidationRecord {
+    test_building: String,
+    folds: Vec<String>,
+}
+
+/// The settings of a validation.json (`--settings`), per test building, with the
+/// training buildings each was validated on where the file records them.
+pub struct SavedSettings {
+    /// The file, for messages.
+    path: PathBuf,
+    /// The chosen settings per test building.
+    pub settings: BTreeMap<String, ModelSettings>,
+    /// The buildings each test building's validation trained and validated on.
+    validated_on: BTreeMap<String, std::collections::BTreeSet<String>>,
+}
+
+impl SavedSettings {
+    /// Refuses settings of `test_building` that were validated on other buildings than
+    /// `training` (the models would be trained on one set and tuned on another).
+    /// Files without the validation's folds are taken as they are.
+    pub fn check_training(&self, test_building: &str, training: &[String]) -> Result<()> {
+        let Some(validated) = self.validated_on.get(test_building) else {
+            return Ok(());
+        };
+        let training: std::collections::BTreeSet<String> = training.iter().cloned().collect();
+        if *validated != training {
+            let list = |s: &std::collections::BTreeSet<String>| {
+                s.iter().cloned().collect::<Vec<_>>().join(", ")
+            };
+            bail!(
+                "--settings {}: the settings of {test_building} were validated on {}, but this run trains on {}; use a validation on the same training buildings (graphspn validate; NAME=PATH names a --train set), or leave out --settings to validate here",
+                self.path.display(),
+                list(validated),
+                list(&training)
+            );
+        }
+        Ok(())
+    }
 }
 
 /// Reads the per-building settings of a validation.json: unknown fields are errors,
 /// and every building's settings are checked against their domains
 /// ([`ModelSettings::check`]) before any work.
 /// Errors start with `--settings PATH`.
-pub fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSettings>> {
+pub fn read_settings(path: &std::path::Path) -> Result<SavedSettings> {
     let at = format!("--settings {}", path.display());
     let text = std::fs::read_to_string(path).with_context(|| at.clone())?;
     let file: SettingsFile = serde_json::from_str(&text).map_err(|e| {
@@ -244,7 +285,26 @@ pub fn read_settings(path: &std::path::Path) -> Result<BTreeMap<String, ModelSet
             anyhow::anyhow!("{at}{line}: settings of {building}: {e}")
         })?;
     }
-    Ok(file.settings)
+    let mut validated_on = BTreeMap::new();
+    for v in &file.validation {
+        let mut buildings = std::collections::BTreeSet::new();
+        for fold in &v.folds {
+            let Some((train, val)) = fold_buildings(fold) else {
+                bail!(
+                    "{at}: validation of {}: fold {fold:?} is not TRAIN → VALIDATE",
+                    v.test_building
+                );
+            };
+            buildings.extend(train.into_iter().map(str::to_string));
+            buildings.insert(val.to_string());
+        }
+        validated_on.insert(v.test_building.clone(), buildings);
+    }
+    Ok(SavedSettings {
+        path: path.to_path_buf(),
+        settings: file.settings,
+        validated_on,
+    })
 }
 
 /// The line of the value at `path` (object keys, outermost first) in the JSON `text`,
@@ -273,6 +333,9 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     let data = require_data_dir(args.data)?;
     let mut outputs = Outputs::new(args.run.force);
     outputs.input("--data", &data);
+    if let Some(p) = &args.settings {
+        outputs.input("--settings", p);
+    }
     outputs.folder("--out", &args.run.out)?;
     let mut cfg = args.run.config(args.quick);
     if args.paper_noise {
@@ -298,18 +361,8 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
                 )
             })?;
     }
-    if let Some(x) = &args.exclude {
-        check_buildings("--exclude", std::slice::from_ref(x))?;
-        cfg.test_buildings.retain(|b| b != x);
-    }
     if let Some(b) = args.buildings {
         check_buildings("--buildings", &b)?;
-        if let Some(x) = args.exclude.as_ref().filter(|x| b.contains(x)) {
-            bail!(
-                "--buildings {}: building {x} is also given to --exclude",
-                b.join(",")
-            );
-        }
         cfg.test_buildings = b;
     }
     args.protocol.apply(&mut cfg)?;
@@ -317,9 +370,7 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
         flag_domain("--maps", domain::maps("maps_per_building", m))?;
         cfg.maps_per_building = m;
     }
-    if let Some(p) = &args.settings {
-        cfg.settings = Some(read_settings(p)?);
-    }
+    let saved = args.settings.as_deref().map(read_settings).transpose()?;
     if let Some(t) = &args.training {
         if args.settings.is_some() {
             bail!(
@@ -359,9 +410,13 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
         cfg.cooccurrence.normalisation = Normalisation::Pmi;
     }
     let start = Instant::now();
-    let mut all = load_data(&data)?;
-    if let Some(x) = &args.exclude {
-        all.remove(x);
+    let all = load_data(&data)?;
+    if let Some(saved) = saved {
+        for b in &cfg.test_buildings {
+            let training = training_buildings(&all, b, &cfg)?;
+            saved.check_training(b, &training)?;
+        }
+        cfg.settings = Some(saved.settings);
     }
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();

@@ -146,12 +146,6 @@ pub fn run_args(m: &str, f: &str) -> Vec<Case> {
             &["--candidates 2"],
         ),
         case(
-            "reproduce exclude unknown",
-            &["reproduce", "--out", "{root}/r", "--exclude", "Atlantis"],
-            1,
-            &["--exclude", "\"Atlantis\""],
-        ),
-        case(
             "reproduce buildings twice",
             &[
                 "reproduce",
@@ -162,20 +156,6 @@ pub fn run_args(m: &str, f: &str) -> Vec<Case> {
             ],
             1,
             &["--buildings", "Stockholm is listed twice"],
-        ),
-        case(
-            "reproduce buildings excluded",
-            &[
-                "reproduce",
-                "--out",
-                "{root}/r",
-                "--buildings",
-                "Stockholm",
-                "--exclude",
-                "Stockholm",
-            ],
-            1,
-            &["--buildings", "--exclude"],
         ),
         case(
             "reproduce training list",

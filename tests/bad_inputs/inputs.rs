@@ -79,6 +79,11 @@ pub fn cold_evidence_decompositions(root: &Path, cases: &mut Vec<Case>) -> Value
             |_, r| r[2] = "2 1-KT-1".into(),
             &["nodes.dat:3", "node 2"],
         ),
+        (
+            "room_stray",
+            |_, r| r.push("999 1-CR-1".into()),
+            &["rooms.dat:89", "node 999 is not in nodes.dat"],
+        ),
     ];
     for (stem, edit, expect) in cold_edits {
         let dir = root.join("cold").join(stem);

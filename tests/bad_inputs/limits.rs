@@ -298,6 +298,104 @@ pub fn limits_and_settings(root: &Path, decs: &Value, cases: &mut Vec<Case>) {
             "graphspn.prior_correction = -0.5",
         ],
     ));
+    // A settings file inside the output folder is an input: --force may not replace
+    // the folder that holds it (it used to be deleted with the old output).
+    std::fs::create_dir(root.join("val")).unwrap();
+    std::fs::write(root.join("val/.graphspn-output"), "graphspn\n").unwrap();
+    write_json(
+        &root.join("val/validation.json"),
+        &json!({"settings": {"Stockholm": chosen}}),
+    );
+    for cmd in ["reproduce", "evaluate"] {
+        let mut args = vec![cmd];
+        if cmd == "evaluate" {
+            args.extend(["--maps", "{root}/floor.json"]);
+        }
+        args.extend([
+            "--settings",
+            "{root}/val/validation.json",
+            "--out",
+            "{root}/val",
+            "--force",
+        ]);
+        cases.push(case(
+            &format!("{cmd} settings inside the output folder"),
+            &args,
+            1,
+            &["--out", "overlaps the input --settings"],
+        ));
+    }
+    // Settings validated on other training buildings than the run's: refused, naming
+    // both sets (the folds say which buildings a validation used).
+    write_json(
+        &root.join("s_other_training.json"),
+        &json!({
+            "settings": {"Stockholm": chosen},
+            "validation": [{
+                "test_building": "Stockholm",
+                "folds": ["Saarbrucken → Freiburg", "Freiburg → Saarbrucken"],
+            }],
+        }),
+    );
+    cases.push(case(
+        "evaluate settings validated on other buildings",
+        &[
+            "evaluate",
+            "--maps",
+            "{root}/floor.json",
+            "--settings",
+            "{root}/s_other_training.json",
+            "--out",
+            "{root}/r",
+        ],
+        1,
+        &[
+            "s_other_training.json",
+            "validated on Freiburg, Saarbrucken",
+            "trains on Freiburg, Saarbrucken, Stockholm",
+        ],
+    ));
+    write_json(
+        &root.join("s_odd_training.json"),
+        &json!({
+            "settings": {"Stockholm": chosen},
+            "validation": [{
+                "test_building": "Stockholm",
+                "folds": ["Elsewhere → Freiburg", "Freiburg → Elsewhere"],
+            }],
+        }),
+    );
+    cases.push(case(
+        "reproduce settings validated on other buildings",
+        &[
+            "reproduce",
+            "--buildings",
+            "Stockholm",
+            "--settings",
+            "{root}/s_odd_training.json",
+            "--out",
+            "{root}/r",
+        ],
+        1,
+        &[
+            "s_odd_training.json",
+            "validated on Elsewhere, Freiburg",
+            "trains on Freiburg, Saarbrucken",
+        ],
+    ));
+    // A test map with no places: refused before the validation runs.
+    cases.push(case(
+        "evaluate empty test map",
+        &[
+            "evaluate",
+            "--maps",
+            "{root}/map_empty.json",
+            "--out",
+            "{root}/r",
+        ],
+        1,
+        &["--maps", "map_empty.json", "has no places"],
+    ));
     write_json(
         &root.join("s_unknown_top.json"),
         &json!({"settings": {"Stockholm": chosen}, "setings": {}}),

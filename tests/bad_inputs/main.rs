@@ -44,6 +44,15 @@ fn corpus(root: &Path) -> Vec<Case> {
     write_json(&root.join("trees_asymmetric.json"), &bad_trees);
     std::fs::copy(repo("generated/demo/floor.json"), root.join("floor.json")).unwrap();
     std::fs::write(root.join("hand.rs"), "// mine\n").unwrap();
+    // A file graphspn generated, and a link to it: compile replaces the file without
+    // --force, never the link.
+    std::fs::write(
+        root.join("gen.rs"),
+        format!("{}\n", graphspn_compiler::codegen::GENERATED_MARKER),
+    )
+    .unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink("gen.rs", root.join("link.rs")).unwrap();
     std::fs::write(root.join("existing.json"), "{}\n").unwrap();
     std::fs::create_dir(root.join("full")).unwrap();
     std::fs::write(root.join("full/REPORT.md"), "mine\n").unwrap();

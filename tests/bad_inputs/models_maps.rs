@@ -313,6 +313,11 @@ pub fn models_and_maps(root: &Path, cases: &mut Vec<Case>) {
             &["at least one class"],
         ),
         (
+            "classes_65537",
+            |m| m["classes"] = json!((0..65537).map(|i| format!("c{i}")).collect::<Vec<_>>()),
+            &["65537 classes: at most 65536"],
+        ),
+        (
             "negative_id",
             |m| m["places"][2]["id"] = json!(-1),
             &["line "],
@@ -429,20 +434,38 @@ pub fn models_and_maps(root: &Path, cases: &mut Vec<Case>) {
         p["class"] = json!("CR");
     }
     write_json(&root.join("map_three_classes.json"), &three);
-    for cmd in ["infer", "instance", "compile"] {
-        cases.push(case(
-            &format!("{cmd} map_three_classes"),
-            &[
-                cmd,
-                "--model",
-                "{root}/model.json",
-                "--map",
-                "{root}/map_three_classes.json",
-                "--out",
-                "{root}/o.rs",
-            ],
-            1,
-            &["classes"],
-        ));
+    // A map with no place to label.
+    let mut empty = floor.clone();
+    empty["places"] = json!([]);
+    empty["edges"] = json!([]);
+    write_json(&root.join("map_empty.json"), &empty);
+    // Refused by every command that reads a map for a model, of either family, with
+    // both files named, before any work (decompose used to write a file for them).
+    for (map, what) in [("map_three_classes", "classes"), ("map_empty", "no places")] {
+        for model in ["model", "trees"] {
+            for cmd in ["infer", "instance", "compile", "decompose"] {
+                if cmd == "decompose" && model == "trees" {
+                    continue;
+                }
+                let (map_arg, model_arg) = (
+                    format!("{{root}}/{map}.json"),
+                    format!("{{root}}/{model}.json"),
+                );
+                cases.push(case(
+                    &format!("{cmd} {model} {map}"),
+                    &[
+                        cmd,
+                        "--model",
+                        &model_arg,
+                        "--map",
+                        &map_arg,
+                        "--out",
+                        "{root}/o.rs",
+                    ],
+                    1,
+                    &["--map", &format!("{map}.json does not fit --model"), what],
+                ));
+            }
+        }
     }
 }
