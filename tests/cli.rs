@@ -59,6 +59,35 @@ fn infer_gives_normalised_marginals_and_the_likelihood_of_the_evidence() {
     let first = places.iter().find(|p| p["id"] == 0).expect("place 0");
     assert_eq!(first["argmax"], "CR");
     assert_eq!(v["mpe"]["labels"]["0"], "CR");
+    assert_eq!(v["seed"], 0);
+    // Decompositions read from a file (made with seed 9): the output names the file
+    // and records no seed, which would not reproduce it.
+    let decs = dir.path().join("d9.json");
+    run_ok(
+        bin()
+            .args(["decompose", "--count", "3", "--seed", "9", "--model"])
+            .arg(demo("model.json"))
+            .arg("--map")
+            .arg(demo("floor.json"))
+            .arg("--out")
+            .arg(&decs),
+    );
+    let text = run_ok(
+        bin()
+            .args(["infer", "--model"])
+            .arg(demo("model.json"))
+            .arg("--map")
+            .arg(demo("floor.json"))
+            .arg("--decompositions-file")
+            .arg(&decs),
+    );
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(v.get("seed").is_none(), "{}", v["seed"]);
+    assert_eq!(v["model"]["decompositions"], 3);
+    assert_eq!(
+        v["model"]["decompositions_file"],
+        decs.display().to_string()
+    );
 }
 
 #[test]

@@ -13,7 +13,11 @@ use crate::map::TopoMap;
 #[derive(Debug, Error)]
 pub enum InputsError {
     /// The map's class names (in order) are not the model's.
-    #[error("the map {map:?} has classes {map_classes:?} but the model has {model_classes:?}")]
+    #[error(
+        "the map {map:?} has classes {} but the model has {}",
+        crate::map::shown_class_names(map_classes),
+        crate::map::shown_class_names(model_classes)
+    )]
     ClassMismatch {
         /// Map name.
         map: String,

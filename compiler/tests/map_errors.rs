@@ -107,7 +107,10 @@ fn missing_files() {
     assert!(e.to_string().contains("nodes.dat"));
     let (e, s) = load_err(&three_nodes().join("\n"), None);
     assert!(matches!(e, MapError::MissingFile { .. }));
-    assert!(s.contains("rooms.dat") && s.contains("missing file"), "{s}");
+    assert!(
+        s.contains("rooms.dat") && s.contains("no such file or folder"),
+        "{s}"
+    );
     assert!(TopoMap::load(tmp.path().join("nope.json")).is_err());
     let e = cold::load_building(tmp.path(), "Nowhere").unwrap_err();
     assert!(e.to_string().contains("Nowhere"), "{e}");

@@ -15,8 +15,8 @@ use graphspn_compiler::family::AnyModel;
 
 use super::budget::{Budget, Work, read_map_within};
 use super::common::{
-    any_map_fits, check_decomposition_count, count_decompositions_file, data_dir, declare_map,
-    decompositions_for, flag_domain, load_any_model, parse_strategy,
+    any_map_fits, count_decompositions_file, data_dir, declare_map, decompositions_for,
+    flag_domain, load_any_model, parse_strategy,
 };
 
 /// Largest map `compile` takes: the generator's limit (its tables index places with
@@ -99,12 +99,13 @@ pub struct CompileArgs {
     force: bool,
 }
 
-/// Refuses more decompositions than a module can mix; `what` names the flag (and the
-/// file) they come from.
+/// Refuses a number of decompositions a module cannot mix (none, or more than
+/// [`MAX_COMPILED_DECOMPOSITIONS`]); `what` names the flag (and the file) they come
+/// from.
 fn check_compiled_count(what: &str, count: usize) -> Result<()> {
-    if count > MAX_COMPILED_DECOMPOSITIONS {
+    if !(1..=MAX_COMPILED_DECOMPOSITIONS).contains(&count) {
         bail!(
-            "{what}: at most {MAX_COMPILED_DECOMPOSITIONS} decompositions can be compiled (the generated tables hold each component's decompositions as a 64-bit mask)"
+            "{what}: a module mixes from 1 to {MAX_COMPILED_DECOMPOSITIONS} decompositions (the generated tables hold each component's decompositions as a 64-bit mask)"
         );
     }
     Ok(())
@@ -157,7 +158,6 @@ pub fn run(args: CompileArgs) -> Result<()> {
             }
             None => {
                 let count = args.count.unwrap_or(5);
-                check_decomposition_count("--count", count)?;
                 check_compiled_count(&format!("--count {count}"), count)?;
                 Budget::new(format!("--count {count}"), Work::decompositions(count))
             }

@@ -10,7 +10,7 @@ use clap::Args;
 use graphspn_compiler::experiments::report::write_outputs;
 use graphspn_compiler::experiments::reproduce::run;
 use graphspn_compiler::experiments::sets::{Evaluation, MapSet, NameRequest, SetRole, name_sets};
-use graphspn_compiler::map::{TopoMap, cold, load_map_set_report, map_set_name};
+use graphspn_compiler::map::{TopoMap, cold, load_map_set_report, map_set_name, shown_class_names};
 
 use super::common::{flag_domain, require_data_dir};
 use super::output::{Outputs, write_folder};
@@ -340,10 +340,10 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
         for m in &maps {
             if m.classes != classes {
                 bail!(
-                    "{flag} {given}: map {:?} has classes {:?}, but the training maps have {:?}",
+                    "{flag} {given}: map {:?} has classes {}, but the training maps have {}",
                     m.name,
-                    m.classes.names(),
-                    classes.names()
+                    shown_class_names(m.classes.names()),
+                    shown_class_names(classes.names())
                 );
             }
             if set.role == SetRole::Test && m.places().next().is_none() {

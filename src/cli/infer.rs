@@ -129,7 +129,10 @@ struct InferOut<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     mpe: Option<MpeOut<'a>>,
     places: Vec<PlaceOut<'a>>,
-    seed: u64,
+    /// The seed of the decompositions or trees; none when they were read from
+    /// `--decompositions-file` (named in `model`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    seed: Option<u64>,
 }
 
 /// Runs `graphspn infer`.
@@ -248,7 +251,12 @@ pub fn run(args: InferArgs) -> Result<()> {
             (
                 m,
                 mpe,
-                json!({"family": "graphspn", "decompositions": count, "mixing": mixing.name()}),
+                match &args.decompositions_file {
+                    Some(f) => json!({"family": "graphspn", "decompositions": count,
+                        "decompositions_file": f.display().to_string(), "mixing": mixing.name()}),
+                    None => json!({"family": "graphspn", "decompositions": count,
+                        "mixing": mixing.name()}),
+                },
             )
         }
         AnyModel::TreeMixture(model) => {
@@ -322,7 +330,7 @@ pub fn run(args: InferArgs) -> Result<()> {
         model: mixture,
         mpe,
         places,
-        seed: args.seed,
+        seed: args.decompositions_file.is_none().then_some(args.seed),
     };
     let text = serde_json::to_string_pretty(&doc)? + "\n";
     let svg = args.svg.as_ref().map(|_| {

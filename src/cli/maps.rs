@@ -41,7 +41,7 @@ pub struct StatsArgs {
     #[arg(long)]
     synthetic: Option<usize>,
     /// Seed of the synthetic floor.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, requires = "synthetic")]
     seed: u64,
 }
 
@@ -73,6 +73,7 @@ pub fn stats(args: StatsArgs) -> Result<()> {
 #[derive(Args)]
 #[command(
     allow_negative_numbers = true,
+    group = clap::ArgGroup::new("seeded").args(["synthetic", "model"]).multiple(true),
     after_help = "Examples:
   graphspn render --map Freiburg/seq1_cloudy1 --out freiburg.svg
   graphspn render --synthetic 500 --seed 2 --title \"A synthetic floor\" --out floor.svg
@@ -90,8 +91,8 @@ pub struct RenderArgs {
     /// Draw a synthetic floor of this many places instead (10..=100000).
     #[arg(long)]
     synthetic: Option<usize>,
-    /// Seed of the synthetic floor.
-    #[arg(long, default_value_t = 0)]
+    /// Seed of the synthetic floor, or of the model's spanning trees.
+    #[arg(long, default_value_t = 0, requires = "seeded")]
     seed: u64,
     /// Folder holding the COLD buildings (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]

@@ -238,10 +238,18 @@ pub struct SavedSettings {
 }
 
 impl SavedSettings {
-    /// Refuses settings of `test_building` that were validated on other buildings than
-    /// `training` (the models would be trained on one set and tuned on another).
-    /// Files without the validation's folds are taken as they are.
+    /// Refuses a run of `test_building` the file has no settings for, or whose settings
+    /// were validated on other buildings than `training` (the models would be trained
+    /// on one set and tuned on another). Files without the validation's folds are
+    /// taken as they are.
     pub fn check_training(&self, test_building: &str, training: &[String]) -> Result<()> {
+        if !self.settings.contains_key(test_building) {
+            bail!(
+                "--settings {}: holds no settings for test building {test_building} (it has {}); validate that building, or choose others with --buildings",
+                self.path.display(),
+                self.settings.keys().cloned().collect::<Vec<_>>().join(", ")
+            );
+        }
         let Some(validated) = self.validated_on.get(test_building) else {
             return Ok(());
         };
@@ -327,6 +335,25 @@ fn key_line(text: &str, path: &[&str]) -> Option<usize> {
     Some(text[..at].matches('\n').count() + 1)
 }
 
+/// Merges `patch` into `base`: objects key by key, at every depth (so
+/// `{"structure": {"sums": 3}}` changes one field of the structure and keeps the
+/// variant's others); anything else replaces what it overrides.
+fn merge_json(base: &mut serde_json::Value, patch: serde_json::Value) {
+    match (base, patch) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(p)) => {
+            for (k, x) in p {
+                match b.get_mut(&k) {
+                    Some(old) => merge_json(old, x),
+                    None => {
+                        b.insert(k, x);
+                    }
+                }
+            }
+        }
+        (b, x) => *b = x,
+    }
+}
+
 /// Runs `graphspn reproduce`.
 pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     // Every argument and the output folder are checked before any computation.
@@ -393,13 +420,17 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
                 bail!("--training: {key} cannot be set here ({why})");
             }
         }
+        if p.get("structure")
+            .and_then(|s| s.get("split_choice"))
+            .is_some()
+        {
+            bail!(
+                "--training: structure.split_choice cannot be set here (the validation searches both Star structures, and the report names each variant by it)"
+            );
+        }
         for (_, settings) in cfg.grid.graphspn_variants.iter_mut() {
             let mut v = settings.to_value();
-            if let Some(obj) = v.as_object_mut() {
-                for (k, x) in p {
-                    obj.insert(k.clone(), x.clone());
-                }
-            }
+            merge_json(&mut v, patch.clone());
             *settings = TrainingSettings::from_value(&v).context("--training settings")?;
             settings
                 .check()
@@ -431,4 +462,24 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
         args.run.out.join("REPORT.md").display()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::merge_json;
+    use serde_json::json;
+
+    /// `--training` changes the fields it names, at every depth, and keeps the rest of
+    /// each variant (a structure override used to replace the whole structure, and
+    /// with it the variant's Star split).
+    #[test]
+    fn a_training_patch_merges_field_by_field() {
+        let mut v =
+            json!({"structure": {"sums": 2, "split_choice": "fewest_images"}, "em": "hard"});
+        merge_json(&mut v, json!({"structure": {"sums": 3}, "epochs": 4}));
+        assert_eq!(
+            v,
+            json!({"structure": {"sums": 3, "split_choice": "fewest_images"}, "em": "hard", "epochs": 4})
+        );
+    }
 }

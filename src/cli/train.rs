@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use graphspn_compiler::family::ModelFamily;
 use graphspn_compiler::learn::{Progress, SplitChoice, TrainingSettings, train_model};
@@ -61,7 +61,10 @@ pub struct TrainArgs {
     /// `normalised`, `pmi`; default normalised).
     #[arg(long, value_parser = parse_normalisation)]
     potential: Option<Normalisation>,
-    /// Tree mixture: coupling exponent of the potential (in [0, 10]; default 1).
+    /// Tree mixture: coupling exponent of the potential (in [0, 10]; default 1). The
+    /// trained potential's largest/smallest entry may not exceed 1e6, which on the COLD
+    /// maps limits the coupling to about 1.6-1.7 (1.4 with `--potential pmi`);
+    /// training refuses a larger one, naming these flags.
     #[arg(long)]
     coupling: Option<f64>,
     /// Tree mixture: the unary potential is the training class shares to this power
@@ -210,7 +213,16 @@ pub fn run(args: TrainArgs) -> Result<()> {
         Plan::Graphspn(s) => s,
         Plan::Trees(t) => {
             let start = Instant::now();
-            let model = train_tree_mixture(&maps, &t)?;
+            // The potential's spread is known only once counted: a coupling (or prior
+            // exponent) inside its domain can still take it past MAX_POTENTIAL_RATIO.
+            let model = train_tree_mixture(&maps, &t).with_context(|| {
+                format!(
+                    "--coupling {} --prior-exponent {} --potential {}: training the tree mixture (a smaller --coupling or |--prior-exponent| narrows the potentials)",
+                    t.potentials.coupling,
+                    t.prior_exponent,
+                    t.potentials.normalisation.name()
+                )
+            })?;
             let text = model.to_json()?;
             write_files(&[(&args.out, text.as_bytes())])?;
             eprintln!(

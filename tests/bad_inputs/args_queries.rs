@@ -50,7 +50,7 @@ pub fn query_args(m: &str, f: &str, t: &str) -> Vec<Case> {
                 "{root}/o.rs",
             ],
             1,
-            &["--count 65", "at most 64 decompositions"],
+            &["--count 65", "from 1 to 64 decompositions"],
         ),
         case(
             "compile out a link to a generated file",

@@ -26,6 +26,20 @@ pub fn run_args(m: &str, f: &str) -> Vec<Case> {
             &["--buildings", "\"Atlantis\""],
         ),
         case(
+            "train coupling past the potential ratio",
+            &[
+                "train",
+                "--family",
+                "tree-mixture",
+                "--coupling",
+                "2",
+                "--out",
+                "{root}/t.json",
+            ],
+            1,
+            &["--coupling 2", "smaller --coupling", "exceeds 1e6"],
+        ),
+        case(
             "train epochs 0",
             &["train", "--epochs", "0", "--out", "{root}/t.json"],
             1,
@@ -386,7 +400,7 @@ pub fn run_args(m: &str, f: &str) -> Vec<Case> {
                 "{root}/o.rs",
             ],
             1,
-            &["--count 0"],
+            &["--count 0", "from 1 to 64"],
         ),
         case(
             "compile count huge",

@@ -383,6 +383,24 @@ pub fn limits_and_settings(root: &Path, decs: &Value, cases: &mut Vec<Case>) {
             "trains on Freiburg, Saarbrucken",
         ],
     ));
+    cases.push(case(
+        "reproduce settings without the test building",
+        &[
+            "reproduce",
+            "--buildings",
+            "Freiburg",
+            "--settings",
+            "{root}/s_odd_training.json",
+            "--out",
+            "{root}/r",
+        ],
+        1,
+        &[
+            "--settings",
+            "s_odd_training.json",
+            "no settings for test building Freiburg",
+        ],
+    ));
     // A test map with no places: refused before the validation runs.
     cases.push(case(
         "evaluate empty test map",
@@ -432,6 +450,11 @@ pub fn limits_and_settings(root: &Path, decs: &Value, cases: &mut Vec<Case>) {
             "nested structure",
             r#"{"structure": {"sums": 0}}"#,
             vec!["--training", "structure.sums = 0", "from 1 to 64"],
+        ),
+        (
+            "split choice",
+            r#"{"structure": {"split_choice": "fewest_images"}}"#,
+            vec!["--training", "structure.split_choice cannot be set here"],
         ),
         (
             "prune threshold",

@@ -434,6 +434,25 @@ pub fn models_and_maps(root: &Path, cases: &mut Vec<Case>) {
         p["class"] = json!("CR");
     }
     write_json(&root.join("map_three_classes.json"), &three);
+    // A map with many classes: the message lists the first ten and the count.
+    let mut twenty = floor.clone();
+    twenty["classes"] = json!((0..20).map(|i| format!("c{i}")).collect::<Vec<_>>());
+    for p in twenty["places"].as_array_mut().unwrap() {
+        p["class"] = json!("c0");
+    }
+    write_json(&root.join("map_twenty_classes.json"), &twenty);
+    cases.push(case(
+        "infer map_twenty_classes",
+        &[
+            "infer",
+            "--model",
+            "{root}/model.json",
+            "--map",
+            "{root}/map_twenty_classes.json",
+        ],
+        1,
+        &["\"c9\", … (20 classes)]", "but the model has [\"DW\""],
+    ));
     // A map with no place to label.
     let mut empty = floor.clone();
     empty["places"] = json!([]);

@@ -25,10 +25,11 @@ pub struct CeilingRow {
     pub building: String,
     /// Placeholders scored.
     pub placeholders: usize,
-    /// Per-map mean accuracy (mean over maps with placeholders) from the one-hop context.
-    pub one_hop: f64,
+    /// Per-map mean accuracy (mean over maps with placeholders) from the one-hop
+    /// context; `None` when no test map has a placeholder.
+    pub one_hop: Option<f64>,
     /// The same from the two-hop context.
-    pub two_hop: f64,
+    pub two_hop: Option<f64>,
     /// Per-map accuracies `(map, one hop, two hops)`.
     pub per_map: Vec<(String, f64, f64)>,
 }
@@ -114,12 +115,15 @@ pub fn placeholder_ceiling(building: &str, train: &[TopoMap], test: &[TopoMap]) 
             per_map.push((m.name.clone(), h1 as f64 / n as f64, h2 as f64 / n as f64));
         }
     }
-    let k = per_map.len().max(1) as f64;
+    let k = per_map.len() as f64;
+    let mean = |f: fn(&(String, f64, f64)) -> f64| {
+        (!per_map.is_empty()).then(|| per_map.iter().map(f).sum::<f64>() / k)
+    };
     CeilingRow {
         building: building.to_string(),
         placeholders,
-        one_hop: per_map.iter().map(|x| x.1).sum::<f64>() / k,
-        two_hop: per_map.iter().map(|x| x.2).sum::<f64>() / k,
+        one_hop: mean(|x| x.1),
+        two_hop: mean(|x| x.2),
         per_map,
     }
 }

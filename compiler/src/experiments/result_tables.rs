@@ -167,16 +167,17 @@ pub(crate) fn ceiling_section(rep: &Reproduction) -> String {
         heads.join(" | "),
         "---|".repeat(columns.len())
     );
-    let mean = |b: Option<&str>, l: u8, k: usize| {
-        let v = per_map(rep, b, Experiment::Placeholders, l, |g| g.accuracy[k]);
-        100.0 * v.iter().sum::<f64>() / v.len().max(1) as f64
-    };
+    // A percentage, or a dash where nothing was measured (no placeholder).
+    let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1}", 100.0 * x));
+    let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     let cells = |b: Option<&str>| -> String {
         columns
             .iter()
             .map(|&(l, k, _)| {
                 let k = k.unwrap_or_else(|| best_baseline(rep, b, Experiment::Placeholders, l));
-                format!("{:.1}", mean(b, l, k))
+                pct(mean(&per_map(rep, b, Experiment::Placeholders, l, |g| {
+                    g.accuracy[k]
+                })))
             })
             .collect::<Vec<_>>()
             .join(" | ")
@@ -185,23 +186,25 @@ pub(crate) fn ceiling_section(rep: &Reproduction) -> String {
         let b = Some(c.building.as_str());
         let _ = writeln!(
             s,
-            "| {} | {} | {:.1} | {:.1} | {} |",
+            "| {} | {} | {} | {} | {} |",
             c.building,
             c.placeholders,
-            100.0 * c.one_hop,
-            100.0 * c.two_hop,
+            pct(c.one_hop),
+            pct(c.two_hop),
             cells(b),
         );
     }
     if rep.ceiling.len() > 1 {
         let maps: Vec<&(String, f64, f64)> = rep.ceiling.iter().flat_map(|c| &c.per_map).collect();
-        let k = maps.len().max(1) as f64;
+        let hop = |f: fn(&(String, f64, f64)) -> f64| {
+            mean(&maps.iter().map(|m| f(m)).collect::<Vec<_>>())
+        };
         let _ = writeln!(
             s,
-            "| **all** | {} | {:.1} | {:.1} | {} |",
+            "| **all** | {} | {} | {} | {} |",
             rep.ceiling.iter().map(|c| c.placeholders).sum::<usize>(),
-            100.0 * maps.iter().map(|m| m.1).sum::<f64>() / k,
-            100.0 * maps.iter().map(|m| m.2).sum::<f64>() / k,
+            pct(hop(|m| m.1)),
+            pct(hop(|m| m.2)),
             cells(None),
         );
     }

@@ -23,7 +23,11 @@ pub enum TrainModelError {
     #[error("no templates given")]
     NoTemplates,
     /// Two training maps use different class sets.
-    #[error("map {map:?} has classes {found:?}, but {first:?} has {expected:?}")]
+    #[error(
+        "map {map:?} has classes {}, but {first:?} has {}",
+        crate::map::shown_class_names(found),
+        crate::map::shown_class_names(expected)
+    )]
     ClassMismatch {
         /// The map that differs.
         map: String,

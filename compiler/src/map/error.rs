@@ -8,8 +8,8 @@ use super::PlaceId;
 /// line and column, or the place id concerned.
 #[derive(Debug, thiserror::Error)]
 pub enum MapError {
-    /// A required file does not exist.
-    #[error("{}: missing file", path.display())]
+    /// A required file or folder does not exist.
+    #[error("{}: no such file or folder", path.display())]
     MissingFile {
         /// The file looked for.
         path: PathBuf,

@@ -49,6 +49,19 @@ impl TryFrom<stored::ClassSet> for ClassSet {
     }
 }
 
+/// Class names for a message: all of them as a list when there are at most 12, else
+/// the first 10 and how many there are (a message stays one readable line).
+pub fn shown_class_names(names: &[String]) -> String {
+    const ALL: usize = 12;
+    const FIRST: usize = 10;
+    if names.len() <= ALL {
+        format!("{names:?}")
+    } else {
+        let first: Vec<String> = names[..FIRST].iter().map(|n| format!("{n:?}")).collect();
+        format!("[{}, … ({} classes)]", first.join(", "), names.len())
+    }
+}
+
 /// The paper's ten classes, in index order (listed with their COLD labels in `docs/FORMATS.md`).
 pub const PAPER_CLASSES: [&str; 10] = [
     "DW", "CR", "1PO", "2PO", "LO", "LAB", "BA", "KT", "MR", "UT",

@@ -69,7 +69,11 @@ pub enum TreeMixError {
     #[error("tree mixture: {0}")]
     Model(String),
     /// The map uses a different class set than the model.
-    #[error("the map {map:?} has classes {map_classes:?} but the model has {model_classes:?}")]
+    #[error(
+        "the map {map:?} has classes {} but the model has {}",
+        crate::map::shown_class_names(map_classes),
+        crate::map::shown_class_names(model_classes)
+    )]
     ClassMismatch {
         /// Map name.
         map: String,
