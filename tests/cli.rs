@@ -9,6 +9,16 @@ use std::process::Command;
 
 use cli_support::{bin, demo, run_ok};
 
+/// `graphspn CMD --model <demo model> --map <demo floor>` (the rest to be added).
+fn on_demo(cmd: &str) -> Command {
+    let mut c = bin();
+    c.args([cmd, "--model"])
+        .arg(demo("model.json"))
+        .arg("--map")
+        .arg(demo("floor.json"));
+    c
+}
+
 /// `graphspn compile` of the demo floor into `out`.
 fn compile_demo(out: &std::path::Path) -> Command {
     let mut cmd = bin();
@@ -32,16 +42,7 @@ fn infer_gives_normalised_marginals_and_the_likelihood_of_the_evidence() {
         r#"{"format": 1, "evidence": {"0": [0, 1, 0, 0, 0, 0, 0, 0, 0, 0]}}"#,
     )
     .unwrap();
-    let text = run_ok(
-        bin()
-            .args(["infer", "--model"])
-            .arg(demo("model.json"))
-            .arg("--map")
-            .arg(demo("floor.json"))
-            .arg("--evidence")
-            .arg(&ev)
-            .arg("--mpe"),
-    );
+    let text = run_ok(on_demo("infer").arg("--evidence").arg(&ev).arg("--mpe"));
     let v: serde_json::Value = serde_json::from_str(&text).expect("infer writes JSON");
     let ll = v["log_likelihood"].as_f64().expect("log_likelihood");
     assert!(ll < 0.0 && ll > -5.0, "ln P(Y_0 = CR) = {ll}");
@@ -64,23 +65,11 @@ fn infer_gives_normalised_marginals_and_the_likelihood_of_the_evidence() {
     // and records no seed, which would not reproduce it.
     let decs = dir.path().join("d9.json");
     run_ok(
-        bin()
-            .args(["decompose", "--count", "3", "--seed", "9", "--model"])
-            .arg(demo("model.json"))
-            .arg("--map")
-            .arg(demo("floor.json"))
-            .arg("--out")
+        on_demo("decompose")
+            .args(["--count", "3", "--seed", "9", "--out"])
             .arg(&decs),
     );
-    let text = run_ok(
-        bin()
-            .args(["infer", "--model"])
-            .arg(demo("model.json"))
-            .arg("--map")
-            .arg(demo("floor.json"))
-            .arg("--decompositions-file")
-            .arg(&decs),
-    );
+    let text = run_ok(on_demo("infer").arg("--decompositions-file").arg(&decs));
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert!(v.get("seed").is_none(), "{}", v["seed"]);
     assert_eq!(v["model"]["decompositions"], 3);
