@@ -248,16 +248,14 @@ pub fn run(args: InferArgs) -> Result<()> {
                 ),
                 false => None,
             };
-            (
-                m,
-                mpe,
-                match &args.decompositions_file {
-                    Some(f) => json!({"family": "graphspn", "decompositions": count,
-                        "decompositions_file": f.display().to_string(), "mixing": mixing.name()}),
-                    None => json!({"family": "graphspn", "decompositions": count,
-                        "mixing": mixing.name()}),
-                },
-            )
+            (m, mpe, {
+                let mut doc = json!({"family": "graphspn", "decompositions": count,
+                        "mixing": mixing.name()});
+                if let Some(f) = &args.decompositions_file {
+                    doc["decompositions_file"] = json!(f.display().to_string());
+                }
+                doc
+            })
         }
         AnyModel::TreeMixture(model) => {
             let mut model = model.clone();

@@ -382,16 +382,16 @@ impl Outputs {
         if let Ok(m) = std::fs::symlink_metadata(path)
             && !self.force
         {
-            if m.file_type().is_symlink() && !path.exists() {
-                bail!(
-                    "{flag} {shown}: is a symbolic link to {}, which does not exist; pass --force to replace the link",
-                    link_target(path)
-                );
-            }
-            // A link is never "a file the command generated": only --force replaces it.
+            // A link, dangling or not, is never "a file the command generated": only
+            // --force replaces it.
             if m.file_type().is_symlink() {
+                let dangling = if path.exists() {
+                    ""
+                } else {
+                    ", which does not exist"
+                };
                 bail!(
-                    "{flag} {shown}: is a symbolic link to {}; pass --force to replace the link",
+                    "{flag} {shown}: is a symbolic link to {}{dangling}; pass --force to replace the link",
                     link_target(path)
                 );
             }
