@@ -34,9 +34,10 @@ pub struct TrainArgs {
     /// Output model file (JSON).
     #[arg(long)]
     out: PathBuf,
-    /// Master seed of every random step.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
+    /// GraphSPN: master seed of every random step of its training (default 0). The
+    /// tree mixture's training has no random step and refuses it.
+    #[arg(long)]
+    seed: Option<u64>,
     /// EM epochs (1 to 10000; default 10).
     #[arg(long)]
     epochs: Option<usize>,
@@ -152,6 +153,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
         ),
         ("--temperature", args.temperature.is_some()),
         ("--star-split", args.star_split.is_some()),
+        ("--seed", args.seed.is_some()),
     ];
     let (wrong, family) = match args.family {
         ModelFamily::Graphspn => (tree_flags.as_slice(), "tree-mixture"),
@@ -186,10 +188,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
             Plan::Trees(t)
         }
         ModelFamily::Graphspn => {
-            let mut settings = TrainingSettings {
-                seed: args.seed,
-                ..TrainingSettings::default()
-            };
+            let mut settings = TrainingSettings::default();
+            if let Some(s) = args.seed {
+                settings.seed = s;
+            }
             if let Some(e) = args.epochs {
                 settings.epochs = e;
             }

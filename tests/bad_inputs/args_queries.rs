@@ -125,6 +125,20 @@ pub fn query_args(m: &str, f: &str, t: &str) -> Vec<Case> {
             &["--epochs", "graphspn"],
         ),
         case(
+            "train trees with a seed",
+            &[
+                "train",
+                "--family",
+                "tree-mixture",
+                "--seed",
+                "3",
+                "--out",
+                "{root}/t2.json",
+            ],
+            1,
+            &["--seed", "graphspn"],
+        ),
+        case(
             "train graphspn with coupling",
             &["train", "--coupling", "0.5", "--out", "{root}/t2.json"],
             1,
