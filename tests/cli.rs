@@ -7,7 +7,7 @@ mod cli_support;
 
 use std::process::Command;
 
-use cli_support::{bin, demo, run_ok};
+use cli_support::{bin, demo, run_ok, run_refused};
 
 /// `graphspn CMD --model <demo model> --map <demo floor>` (the rest to be added).
 fn on_demo(cmd: &str) -> Command {
@@ -88,18 +88,16 @@ fn infer_names_the_line_and_place_of_bad_evidence() {
         "{\"format\": 1, \"evidence\": {\n\"99999\": [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]}}",
     )
     .unwrap();
-    let out = bin()
-        .args(["infer", "--model"])
-        .arg(demo("model.json"))
-        .arg("--map")
-        .arg(demo("floor.json"))
-        .arg("--evidence")
-        .arg(&ev)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = run_refused(
+        bin()
+            .args(["infer", "--model"])
+            .arg(demo("model.json"))
+            .arg("--map")
+            .arg(demo("floor.json"))
+            .arg("--evidence")
+            .arg(&ev)
+            .env("RUST_BACKTRACE", "0"),
+    );
     assert!(err.contains("bad.json:2") && err.contains("99999"), "{err}");
 }
 

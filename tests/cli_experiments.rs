@@ -6,7 +6,7 @@ mod cli_support;
 
 use std::path::PathBuf;
 
-use cli_support::{bin, run_ok};
+use cli_support::{bin, run_ok, run_refused};
 
 /// `graphspn validate` (tiny grid, one test building, shipped data) writes its table
 /// and settings, and `reproduce --settings` reuses them: the report names the
@@ -183,49 +183,39 @@ fn evaluate_runs_the_protocol_on_a_building_the_data_folder_does_not_hold() {
             };
             cmd.arg("--maps").arg(a);
         }
-        let bad = cmd
-            .arg("--out")
-            .arg(dir.path().join("bad_name"))
-            .output()
-            .unwrap();
-        assert!(!bad.status.success());
-        let msg = String::from_utf8_lossy(&bad.stderr);
+        let msg = run_refused(cmd.arg("--out").arg(dir.path().join("bad_name")));
         assert!(msg.contains("--maps") && msg.contains(want), "{msg}");
         assert!(!dir.path().join("bad_name").exists());
     }
 
     // The same maps as test and training set: refused (a distinct name would hide
     // that the test maps are trained on), naming both arguments.
-    let twice = bin()
-        .args(["evaluate", "--maps"])
-        .arg(&stockholm)
-        .arg("--train")
-        .arg(&stockholm)
-        .arg("--train")
-        .arg(&building)
-        .arg("--out")
-        .arg(dir.path().join("bad"))
-        .output()
-        .unwrap();
-    assert!(!twice.status.success());
-    let msg = String::from_utf8_lossy(&twice.stderr);
+    let msg = run_refused(
+        bin()
+            .args(["evaluate", "--maps"])
+            .arg(&stockholm)
+            .arg("--train")
+            .arg(&stockholm)
+            .arg("--train")
+            .arg(&building)
+            .arg("--out")
+            .arg(dir.path().join("bad")),
+    );
     assert!(
         msg.contains("--maps") && msg.contains("--train") && msg.contains("given twice"),
         "{msg}"
     );
 
     // Bad input: one training building is not enough for the validation.
-    let bad = bin()
-        .args(["evaluate", "--maps"])
-        .arg(&building)
-        .arg("--train")
-        .arg(&building)
-        .arg("--out")
-        .arg(dir.path().join("bad"))
-        .output()
-        .unwrap();
-    assert!(!bad.status.success());
-    let msg = String::from_utf8_lossy(&bad.stderr);
+    let msg = run_refused(
+        bin()
+            .args(["evaluate", "--maps"])
+            .arg(&building)
+            .arg("--train")
+            .arg(&building)
+            .arg("--out")
+            .arg(dir.path().join("bad")),
+    );
     assert!(
         msg.contains("--train") && msg.contains("at least two"),
         "{msg}"
@@ -258,8 +248,11 @@ fn evaluate_reuses_a_saved_validation() {
         trees: 2,
         ..TreeTraining::default()
     };
+    // A GraphSPN trained for 2 epochs (fewer than the default): the report says so.
+    let mut graphspn = GraphSpnSetting::paper();
+    graphspn.training.epochs = 2;
     let chosen = ModelSettings {
-        graphspn: GraphSpnSetting::paper(),
+        graphspn,
         mrf2: MrfSetting::paper(BpOptions::default()),
         mrf3: MrfSetting::paper(BpOptions::default()),
         trees,
@@ -268,8 +261,8 @@ fn evaluate_reuses_a_saved_validation() {
     let file = serde_json::json!({"settings": {"Stockholm": chosen, "Freiburg": chosen}});
     std::fs::write(&settings, file.to_string()).unwrap();
     let eval = |extra: &[&str], out: &str| {
-        bin()
-            .args(["evaluate", "--maps"])
+        let mut cmd = bin();
+        cmd.args(["evaluate", "--maps"])
             .arg(&held)
             .arg("--train")
             .arg(data.join("Freiburg"))
@@ -279,23 +272,15 @@ fn evaluate_reuses_a_saved_validation() {
             .arg(&settings)
             .args(["--levels", "2", "--rounds", "1", "--no-novelty", "--out"])
             .arg(dir.path().join(out))
-            .args(extra)
-            .output()
-            .unwrap()
+            .args(extra);
+        cmd
     };
-    let refused = eval(&[], "e0");
-    assert!(!refused.status.success());
-    let msg = String::from_utf8_lossy(&refused.stderr);
+    let msg = run_refused(&mut eval(&[], "e0"));
     assert!(
         msg.contains("--settings-of") && msg.contains("Freiburg, Stockholm"),
         "{msg}"
     );
-    let ok = eval(&["--settings-of", "Stockholm"], "e1");
-    assert!(
-        ok.status.success(),
-        "{}",
-        String::from_utf8_lossy(&ok.stderr)
-    );
+    run_ok(&mut eval(&["--settings-of", "Stockholm"], "e1"));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("e1/results.json")).unwrap())
             .unwrap();
@@ -309,6 +294,7 @@ fn evaluate_reuses_a_saved_validation() {
         "# Evaluation of the semantic-map models on your maps: Stockholm",
         "Every setting below was given (`--settings`",
         "| Stockholm | Freiburg, Saarbrucken |",
+        "; training: epochs = 2 |",
     ] {
         assert!(report.contains(want), "REPORT.md lacks {want:?}:\n{report}");
     }

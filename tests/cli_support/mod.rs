@@ -28,3 +28,16 @@ pub fn run_ok(cmd: &mut Command) -> String {
     );
     String::from_utf8(out.stdout).expect("utf-8 output")
 }
+
+/// Runs `cmd`, fails the test unless it fails, and returns its standard error (the
+/// message to check).
+#[allow(dead_code)] // not every test crate checks refusals
+pub fn run_refused(cmd: &mut Command) -> String {
+    let out = cmd.output().expect("graphspn runs");
+    assert!(
+        !out.status.success(),
+        "graphspn succeeded where it should refuse: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}

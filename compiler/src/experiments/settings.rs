@@ -225,9 +225,32 @@ impl GraphSpnSetting {
         ]
     }
 
-    /// Short description, e.g. `most_images, τ=0.8, ev^2, β=0.25, cover 20/60, average`.
+    /// The training settings that differ from the defaults (e.g. set by `reproduce
+    /// --training`), as `path = value` in JSON terms, e.g. `["em = \"soft\"",
+    /// "structure.sums = 3"]`; the seed (replaced per building), the temperature and
+    /// the structure's split choice (both in [`label`](Self::label)) are left out.
+    pub fn training_changes(&self) -> Vec<String> {
+        let mut base = TrainingSettings {
+            seed: self.training.seed,
+            temperature: self.training.temperature,
+            ..TrainingSettings::default()
+        };
+        base.structure.split_choice = self.training.structure.split_choice;
+        let mut changes = Vec::new();
+        json_changes(
+            "",
+            &base.to_value(),
+            &self.training.to_value(),
+            &mut changes,
+        );
+        changes
+    }
+
+    /// Short description, e.g. `most_images, τ=0.8, ev^2, β=0.25, cover 20/60,
+    /// average`, followed by `; training: …` with the
+    /// [`training_changes`](Self::training_changes) when there are any.
     pub fn label(&self) -> String {
-        format!(
+        let mut label = format!(
             "{}, τ={}, ev^{}, β={}, {}, {}",
             self.variant,
             self.training.temperature,
@@ -235,7 +258,37 @@ impl GraphSpnSetting {
             self.prior_correction,
             self.decompositions.label(),
             self.mixing.name()
-        )
+        );
+        let changes = self.training_changes();
+        if !changes.is_empty() {
+            label += "; training: ";
+            label += &changes.join(", ");
+        }
+        label
+    }
+}
+
+/// Appends to `out` every leaf of `new` that differs from `old`, as `path = value`
+/// (objects are followed key by key; paths are dotted).
+fn json_changes(
+    path: &str,
+    old: &serde_json::Value,
+    new: &serde_json::Value,
+    out: &mut Vec<String>,
+) {
+    match (old, new) {
+        (serde_json::Value::Object(o), serde_json::Value::Object(n)) => {
+            for (k, v) in n {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                json_changes(&p, o.get(k).unwrap_or(&serde_json::Value::Null), v, out);
+            }
+        }
+        _ if old != new => out.push(format!("{path} = {new}")),
+        _ => {}
     }
 }
 
@@ -263,5 +316,33 @@ impl ModelSettings {
         self.mrf2.check().map_err(|e| e.under("mrf2"))?;
         self.mrf3.check().map_err(|e| e.under("mrf3"))?;
         self.trees.check().map_err(|e| e.under("trees"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::GraphSpnSetting;
+    use crate::learn::SplitChoice;
+
+    /// A training setting changed from its default (as `reproduce --training` does)
+    /// shows in the label that REPORT.md prints; what the label already says (split,
+    /// temperature) and the per-building seed do not.
+    #[test]
+    fn changed_training_settings_show_in_the_label() {
+        let mut s = GraphSpnSetting::paper();
+        s.training.seed = 17;
+        s.training.temperature = 0.8;
+        s.training.structure.split_choice = SplitChoice::FewestImages;
+        assert!(s.training_changes().is_empty());
+        assert!(!s.label().contains("training"), "{}", s.label());
+        s.training.epochs = 3;
+        s.training.structure.sums = 4;
+        assert_eq!(s.training_changes(), ["epochs = 3", "structure.sums = 4"]);
+        assert!(
+            s.label()
+                .ends_with("; training: epochs = 3, structure.sums = 4"),
+            "{}",
+            s.label()
+        );
     }
 }
