@@ -7,25 +7,14 @@ use thiserror::Error;
 
 use crate::decompose::{DecomposeError, Decomposition};
 use crate::learn::{Model, check_template_spn};
-use crate::map::TopoMap;
+use crate::map::{MapFitError, TopoMap};
 
 /// Why a model, a map and decompositions do not fit together.
 #[derive(Debug, Error)]
 pub enum InputsError {
-    /// The map's class names (in order) are not the model's.
-    #[error(
-        "the map {map:?} has classes {} but the model has {}",
-        crate::map::shown_class_names(map_classes),
-        crate::map::shown_class_names(model_classes)
-    )]
-    ClassMismatch {
-        /// Map name.
-        map: String,
-        /// Class names of the map.
-        map_classes: Vec<String>,
-        /// Class names of the model.
-        model_classes: Vec<String>,
-    },
+    /// The model cannot label the map (other classes, or no places).
+    #[error(transparent)]
+    Map(#[from] MapFitError),
     /// The model has a different number of templates and SPNs.
     #[error("the model has {templates} templates but {spns} SPNs")]
     ModelShape {
@@ -46,9 +35,6 @@ pub enum InputsError {
         /// What is wrong.
         what: String,
     },
-    /// The map has no places.
-    #[error("the map {0:?} has no places")]
-    EmptyMap(String),
     /// No decomposition was given.
     #[error("an instance needs at least one decomposition")]
     NoDecompositions,
@@ -67,17 +53,7 @@ pub enum InputsError {
 /// and at least one place. The first part of [`check_inputs`], for commands that read
 /// a map before they decompose it.
 pub fn check_map(model: &Model, map: &TopoMap) -> Result<(), InputsError> {
-    if map.classes != model.classes {
-        return Err(InputsError::ClassMismatch {
-            map: map.name.clone(),
-            map_classes: map.classes.names().to_vec(),
-            model_classes: model.classes.names().to_vec(),
-        });
-    }
-    if map.num_places() == 0 {
-        return Err(InputsError::EmptyMap(map.name.clone()));
-    }
-    Ok(())
+    Ok(map.check_labellable(&model.classes)?)
 }
 
 /// Checks that `model`, `map` and `decompositions` fit together: the same class names,

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use graphspn_compiler::codegen::{
     Builder, CodegenOptions, Vectorisation, generate_trees_with_report,
 };
-use graphspn_compiler::map::TopoMap;
+use graphspn_compiler::map::{MapFitError, TopoMap};
 use graphspn_compiler::treemix::{NO_PARENT, SpanningTrees, TreeMixError, TreeMixture};
 
 /// The demo model on demo map `file` with 5 decompositions, seed 0.
@@ -403,7 +403,7 @@ fn tree_generation_refuses_inputs_that_do_not_fit() {
     fewer.classes = ClassSet::new(vec!["a".into(), "b".into()]).unwrap();
     assert!(matches!(
         generate_trees_with_report(&model, &fewer, &own, &options),
-        Err(CodegenError::TreeInputs(e)) if matches!(*e, TreeMixError::ClassMismatch { .. })
+        Err(CodegenError::TreeInputs(e)) if matches!(*e, TreeMixError::Map(MapFitError::ClassMismatch { .. }))
     ));
     // The same classes in another order are another model's classes.
     let mut swapped = floor.clone();
@@ -412,7 +412,7 @@ fn tree_generation_refuses_inputs_that_do_not_fit() {
     swapped.classes = ClassSet::new(names).unwrap();
     assert!(matches!(
         generate_trees_with_report(&model, &swapped, &own, &options),
-        Err(CodegenError::TreeInputs(e)) if matches!(*e, TreeMixError::ClassMismatch { .. })
+        Err(CodegenError::TreeInputs(e)) if matches!(*e, TreeMixError::Map(MapFitError::ClassMismatch { .. }))
     ));
 }
 

@@ -10,7 +10,7 @@ use graphspn_compiler::decompose::{Component, DecomposeError, Decomposition};
 use graphspn_compiler::inputs::{InputsError, check_inputs};
 use graphspn_compiler::instance::{ComponentInstance, Instance};
 use graphspn_compiler::learn::Model;
-use graphspn_compiler::map::{ClassSet, TopoMap};
+use graphspn_compiler::map::{ClassSet, MapFitError, TopoMap};
 use graphspn_compiler::spn::Node;
 use graphspn_compiler::template::Template;
 use rand::SeedableRng;
@@ -109,14 +109,14 @@ fn bad_inputs_are_reported() {
     let wrong_classes = map(4, 3, &[(0, 1), (1, 2), (2, 3)]);
     assert!(matches!(
         refused(&m, &wrong_classes, &decs),
-        InputsError::ClassMismatch { .. }
+        InputsError::Map(MapFitError::ClassMismatch { .. })
     ));
     // The same number of classes in another order is another class set.
     let mut swapped = mp.clone();
     swapped.classes = ClassSet::new(vec!["C1".into(), "C0".into()]).unwrap();
     assert!(matches!(
         refused(&m, &swapped, &decs),
-        InputsError::ClassMismatch { .. }
+        InputsError::Map(MapFitError::ClassMismatch { .. })
     ));
     let mut twice = decs.clone();
     twice[1].components.push(Component {
@@ -177,7 +177,7 @@ fn bad_inputs_are_reported() {
     let empty = map(0, 2, &[]);
     assert!(matches!(
         refused(&m, &empty, &decs),
-        InputsError::EmptyMap(_)
+        InputsError::Map(MapFitError::Empty(_))
     ));
     let mut shape = m.clone();
     shape.spns.pop();

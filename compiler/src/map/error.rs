@@ -287,3 +287,26 @@ impl MapError {
         }
     }
 }
+
+/// Why a model cannot label a map: the one check of every model family
+/// ([`TopoMap::check_labellable`](super::TopoMap::check_labellable)).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MapFitError {
+    /// The map's class names (in order) are not the model's.
+    #[error(
+        "the map {map:?} has classes {} but the model has {}",
+        super::shown_class_names(map_classes),
+        super::shown_class_names(model_classes)
+    )]
+    ClassMismatch {
+        /// Map name.
+        map: String,
+        /// Class names of the map.
+        map_classes: Vec<String>,
+        /// Class names of the model.
+        model_classes: Vec<String>,
+    },
+    /// The map has no places.
+    #[error("the map {0:?} has no places")]
+    Empty(String),
+}

@@ -15,7 +15,7 @@ mod set;
 pub mod stats;
 pub mod synthetic;
 
-pub use error::MapError;
+pub use error::{MapError, MapFitError};
 pub use json::MAP_FORMAT;
 pub use set::{load_map_set, load_map_set_report, map_set_name};
 
@@ -153,6 +153,22 @@ pub struct TopoMap {
 }
 
 impl TopoMap {
+    /// Whether a model of `classes` can label this map: the same class names in the
+    /// same order, and at least one place. Every model family's input check runs it.
+    pub fn check_labellable(&self, classes: &ClassSet) -> Result<(), MapFitError> {
+        if self.classes != *classes {
+            return Err(MapFitError::ClassMismatch {
+                map: self.name.clone(),
+                map_classes: self.classes.names().to_vec(),
+                model_classes: classes.names().to_vec(),
+            });
+        }
+        if self.num_places() == 0 {
+            return Err(MapFitError::Empty(self.name.clone()));
+        }
+        Ok(())
+    }
+
     /// Number of places.
     pub fn num_places(&self) -> usize {
         self.graph.node_count()

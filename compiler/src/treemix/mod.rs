@@ -68,23 +68,9 @@ pub enum TreeMixError {
     /// The model (or its training settings) is invalid.
     #[error("tree mixture: {0}")]
     Model(String),
-    /// The map uses a different class set than the model.
-    #[error(
-        "the map {map:?} has classes {} but the model has {}",
-        crate::map::shown_class_names(map_classes),
-        crate::map::shown_class_names(model_classes)
-    )]
-    ClassMismatch {
-        /// Map name.
-        map: String,
-        /// Class names of the map.
-        map_classes: Vec<String>,
-        /// Class names of the model.
-        model_classes: Vec<String>,
-    },
-    /// The map has no places.
-    #[error("the map {0:?} has no places")]
-    EmptyMap(String),
+    /// The model cannot label the map (other classes, or no places).
+    #[error(transparent)]
+    Map(#[from] crate::map::MapFitError),
     /// The spanning forests do not fit the map.
     #[error("spanning trees: {0}")]
     BadTrees(String),

@@ -211,7 +211,7 @@ impl SpanningTrees {
     pub fn covering(map: &TopoMap, count: usize, seed: u64) -> Result<Self, TreeMixError> {
         let n = map.num_places();
         if n == 0 {
-            return Err(TreeMixError::EmptyMap(map.name.clone()));
+            return Err(crate::map::MapFitError::Empty(map.name.clone()).into());
         }
         if count == 0 {
             return Err(TreeMixError::BadTrees(
@@ -322,17 +322,7 @@ fn find(sets: &mut [u32], x: u32) -> u32 {
 /// Checks that `map` can be labelled by `model`: the model's class names, in order,
 /// and at least one place (the map part of [`check_inputs`]).
 pub fn check_map(model: &TreeMixture, map: &TopoMap) -> Result<(), TreeMixError> {
-    if map.classes.names() != model.classes.names() {
-        return Err(TreeMixError::ClassMismatch {
-            map: map.name.clone(),
-            map_classes: map.classes.names().to_vec(),
-            model_classes: model.classes.names().to_vec(),
-        });
-    }
-    if map.num_places() == 0 {
-        return Err(TreeMixError::EmptyMap(map.name.clone()));
-    }
-    Ok(())
+    Ok(map.check_labellable(&model.classes)?)
 }
 
 /// Checks that `model`, `map` and `trees` fit together: a valid model, the same class
