@@ -182,6 +182,33 @@ fn model_mutations() -> Vec<Mutation> {
             &[":2:15", "ClassSet"],
         ),
         ("spns_not_list", |m| m["spns"] = json!(3), &["invalid type"]),
+        // Unknown fields at every level are refused, not ignored (a misspelt field
+        // would otherwise be a silent default).
+        (
+            "unknown_field",
+            |m| m["temperature"] = json!(0.5),
+            &["unknown field `temperature`"],
+        ),
+        (
+            "unknown_template_field",
+            |m| m["templates"][0]["nodes"] = json!(3),
+            &["unknown field `nodes`"],
+        ),
+        (
+            "unknown_spn_field",
+            |m| m["spns"][3]["roots"] = json!([10]),
+            &["unknown field `roots`"],
+        ),
+        (
+            "unknown_node_field",
+            |m| m["spns"][3]["nodes"][10]["weight"] = json!(1),
+            &["unknown field `weight`"],
+        ),
+        (
+            "unknown_class_field",
+            |m| m["classes"]["colours"] = json!([]),
+            &["unknown field `colours`"],
+        ),
     ]
 }
 

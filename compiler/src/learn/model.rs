@@ -17,6 +17,7 @@ pub const MODEL_FORMAT: u32 = 1;
 /// `classes.len()` classes. Templates are listed largest first (the order the
 /// decomposition tries them in).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Model {
     /// Format version, [`MODEL_FORMAT`].
     pub format: u32,

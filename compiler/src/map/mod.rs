@@ -37,6 +37,7 @@ pub struct ClassSet {
 mod stored {
     /// The class names of a stored class set, unchecked.
     #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
     pub(super) struct ClassSet {
         pub(super) names: Vec<String>,
     }

@@ -13,7 +13,7 @@ pub type NodeId = u32;
 
 /// One node of an [`Spn`].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Node {
     /// `λ[Y_var = class] · α_var^class`.
     Leaf {
@@ -38,6 +38,7 @@ pub enum Node {
 
 /// A sum-product network over categorical variables `0..classes.len()`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Spn {
     /// Number of classes of each variable (`classes[v]` ≥ 1).
     pub classes: Vec<u32>,

@@ -90,6 +90,7 @@ pub enum TemplateError {
 
 /// A sub-graph template.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Template {
     /// Unique name, e.g. `star`.
     pub name: String,
