@@ -3,7 +3,8 @@
 
 use std::path::PathBuf;
 
-use graphspn_compiler::codegen::{BuildError, Builder};
+use graphspn_compiler::codegen::{Arithmetic, BuildError, Builder, Precision, Vectorisation};
+use graphspn_compiler::decompose::DecompositionStrategy;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::{ClassSet, TopoMap};
 
@@ -168,6 +169,43 @@ fn tree_mixture_models_compile_through_the_builder() {
         .unwrap_err();
     assert!(matches!(err, BuildError::BadOption(_)), "{err}");
     assert!(err.to_string().contains("tree_model.json"), "{err}");
+    // So are the decompositions' strategy and candidates: refused, not ignored.
+    for (builder, option) in [
+        (
+            Builder::new(&trees, &floor).strategy(DecompositionStrategy::Cover),
+            "Builder::strategy",
+        ),
+        (
+            Builder::new(&trees, &floor).candidates(30),
+            "Builder::candidates",
+        ),
+    ] {
+        let err = builder.generate().unwrap_err();
+        let msg = err.to_string();
+        assert!(matches!(err, BuildError::BadOption(_)), "{msg}");
+        assert!(
+            msg.contains("tree_model.json") && msg.contains(option),
+            "{msg}"
+        );
+    }
+    // Fixed point needs f32 scalar code, as for GraphSPNs (SIMD or f64 code was
+    // silently generated in float).
+    for builder in [
+        Builder::new(&trees, &floor).vectorisation(Vectorisation::Simd),
+        Builder::new(&trees, &floor)
+            .vectorisation(Vectorisation::Scalar)
+            .precision(Precision::F64),
+    ] {
+        let err = builder
+            .arithmetic(Arithmetic::Fixed)
+            .generate()
+            .unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("fixed-point arithmetic needs f32 scalar code"),
+            "{err}"
+        );
+    }
     // Too many trees: the spanning-tree error names both files.
     let err = Builder::new(&trees, &floor)
         .count(0)

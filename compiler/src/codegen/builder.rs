@@ -339,6 +339,9 @@ pub struct Builder {
     overwrite: bool,
     /// The count given to [`Builder::count`] (trees of a tree mixture).
     count: Option<usize>,
+    /// The first option set that only GraphSPN decompositions take
+    /// ([`Builder::candidates`], [`Builder::strategy`]): a tree mixture refuses it.
+    graphspn_only: Option<&'static str>,
 }
 
 impl Builder {
@@ -360,6 +363,7 @@ impl Builder {
             cargo_lines: true,
             overwrite: false,
             count: None,
+            graphspn_only: None,
         }
     }
 
@@ -404,16 +408,20 @@ impl Builder {
         self
     }
 
-    /// Number of random candidate partitions scored by [`decompose_best`] (default 15).
+    /// Number of random candidate partitions scored by [`decompose_best`] (default 15;
+    /// GraphSPN only: generating a tree mixture with it set is an error).
     pub fn candidates(mut self, candidates: usize) -> Self {
+        self.graphspn_only.get_or_insert("Builder::candidates");
         self.seeded().candidates = candidates;
         self
     }
 
     /// How seeded decompositions are drawn and ranked (default
     /// [`DecompositionStrategy::Paper`]; [`DecompositionStrategy::Cover`] leaves fewer
-    /// places alone in singleton components).
+    /// places alone in singleton components; GraphSPN only: generating a tree mixture
+    /// with it set is an error).
     pub fn strategy(mut self, strategy: DecompositionStrategy) -> Self {
+        self.graphspn_only.get_or_insert("Builder::strategy");
         self.seeded().strategy = strategy;
         self
     }
@@ -528,6 +536,12 @@ impl Builder {
             AnyModel::Graphspn(_) => return self.load().map(AnyInputs::Graphspn),
             AnyModel::TreeMixture(m) => m,
         };
+        if let Some(option) = self.graphspn_only {
+            return Err(BuildError::BadOption(format!(
+                "model file {} is a tree mixture: {option} applies to a GraphSPN's decompositions",
+                self.model.display()
+            )));
+        }
         let map = load_map(&self.map)?;
         self.check_classes(&model.classes, &map)?;
         let seed = match &self.decompositions {

@@ -169,6 +169,27 @@ pub const DEFAULT_STACK_BYTES: usize = 16 * 1024;
 pub const DEFAULT_SIMD_STACK_BYTES: usize = 64 * 1024;
 
 impl CodegenOptions {
+    /// Whether the options go together and fit a map of `places` places, for either
+    /// model family (the one check both generators run): at most 65,535 places (the
+    /// tables index places with `u16`), and fixed-point arithmetic needs `f32` scalar
+    /// code.
+    pub fn check(&self, places: usize) -> Result<(), CodegenError> {
+        if places > usize::from(u16::MAX) {
+            return Err(CodegenError::BadOption(format!(
+                "at most 65,535 places can be compiled, the map has {places}"
+            )));
+        }
+        if self.arithmetic == Arithmetic::Fixed
+            && (self.precision != Precision::F32 || self.vectorisation != Vectorisation::Scalar)
+        {
+            return Err(CodegenError::BadOption(format!(
+                "fixed-point arithmetic needs f32 scalar code, got {:?} {:?}",
+                self.precision, self.vectorisation
+            )));
+        }
+        Ok(())
+    }
+
     /// The stack budget in force: [`CodegenOptions::max_stack_bytes`] or its default.
     pub fn stack_budget(&self) -> usize {
         self.max_stack_bytes.unwrap_or(match self.vectorisation {

@@ -46,11 +46,7 @@ impl Context {
             model.num_classes(),
             trees.len(),
         );
-        if n > usize::from(u16::MAX) {
-            return Err(CodegenError::BadOption(format!(
-                "at most 65,535 places can be compiled, the map has {n}"
-            )));
-        }
+        options.check(n)?;
         if !(2..=256).contains(&c) {
             return Err(CodegenError::BadOption(format!(
                 "a tree mixture is compiled for 2 to 256 classes, the model has {c}"
@@ -82,9 +78,8 @@ impl Context {
             width,
             k: c.div_ceil(width),
             h,
-            soft: options.arithmetic == Arithmetic::Fixed
-                && width == 1
-                && options.precision == Precision::F32,
+            // `options.check` allows fixed point only for `f32` scalar code.
+            soft: options.arithmetic == Arithmetic::Fixed,
             scalar: match options.precision {
                 Precision::F32 => 4,
                 Precision::F64 => 8,

@@ -93,21 +93,8 @@ impl Context {
     ) -> Result<Context, CodegenError> {
         let n = map.num_places();
         let d_count = decs.len();
-        if n > usize::from(u16::MAX) {
-            return Err(CodegenError::BadOption(format!(
-                "at most 65,535 places can be compiled, the map has {n}"
-            )));
-        }
+        options.check(n)?;
         let fixed = options.arithmetic == Arithmetic::Fixed;
-        if fixed
-            && (options.precision != Precision::F32
-                || options.vectorisation != Vectorisation::Scalar)
-        {
-            return Err(CodegenError::BadOption(format!(
-                "fixed-point arithmetic needs f32 scalar code, got {:?} {:?}",
-                options.precision, options.vectorisation
-            )));
-        }
         if d_count > super::MAX_COMPILED_DECOMPOSITIONS {
             return Err(CodegenError::BadOption(format!(
                 "at most {} decompositions can be compiled, got {d_count}",
