@@ -103,6 +103,11 @@ fn scalar_code_of_the_largest_cold_map_fits_a_small_stack() {
     ] {
         assert!(s <= 16 * 1024, "{r:?}");
     }
+    // `State::mpe` and `State::labelled_log_likelihood` run the stateless passes.
+    assert!(
+        r.stack_state >= r.stack_mpe.max(r.stack_log_likelihood),
+        "{r:?}"
+    );
     assert!(r.table_bytes < 64 * 1024, "{r:?}");
     assert!(r.macs_observe_marginals * 10 < r.macs_marginals, "{r:?}");
 }
@@ -325,6 +330,11 @@ fn tree_factor_tables_follow_the_stack_budget() {
     );
     assert!(src.contains("folded: true"));
     assert!(r.stack_log_likelihood <= 16 * 1024 && r.stack_mpe <= 16 * 1024);
+    // `State::mpe` and `State::labelled_log_likelihood` run the stateless passes.
+    assert!(
+        r.stack_state >= r.stack_mpe.max(r.stack_log_likelihood),
+        "{r:?}"
+    );
     // The marginals' stored messages leave no room for the table within 16 KiB.
     assert!(r.stack_marginals + table > 16 * 1024, "{r:?}");
     // One byte less than the MPE bound with the table: the value passes go without.

@@ -78,6 +78,10 @@ pub trait Compiled {
     fn observe_marginal() -> CallResult;
     /// `state.marginals(&mut marginals)` without a new observation.
     fn state_marginals() -> CallResult;
+    /// `state.mpe(&mut mpe)`: the state's MPE labelling (a full max-product pass).
+    fn state_mpe() -> CallResult;
+    /// `state.labelled_log_likelihood(&labels)` (a full value pass).
+    fn state_labelled_log_likelihood() -> CallResult;
 }
 
 /// Implements [`Compiled`] for module `$m` as type `$ty`, with its buffers (type
@@ -191,6 +195,16 @@ macro_rules! compiled {
             fn state_marginals() -> CallResult {
                 let b = Self::buffers();
                 b.state.marginals(&mut b.marginals)
+            }
+            #[inline(never)]
+            fn state_mpe() -> CallResult {
+                let b = Self::buffers();
+                b.state.mpe(&mut b.mpe)
+            }
+            #[inline(never)]
+            fn state_labelled_log_likelihood() -> CallResult {
+                let b = Self::buffers();
+                b.state.labelled_log_likelihood(&b.labels)
             }
         }
     };

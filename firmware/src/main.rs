@@ -26,6 +26,7 @@
 //! stream set_all instructions=<n> stack=<bytes> value=<f32 bits, hex>|error=<e>
 //! step <i> <observe_marginals|observe_marginal> place=<p> instructions=<n> stack=<bytes> value=...
 //! state_marginals <place> <f32 bits, hex> ...
+//! state_call <mpe|labelled_log_likelihood> instructions=<n> stack=<bytes> value=...
 //! fusion <phase> observe_marginal place=<p> instructions=<n> stack=<bytes> value=...
 //! fusion_state <phase> <log-likelihood bits> <the place's marginal: f32 bits> ...
 //! done
@@ -144,6 +145,16 @@ fn stream<M: Compiled>(out: &mut impl Write, seed: u64) -> core::fmt::Result {
     match M::state_marginals() {
         Ok(_) => M::with_views(|v| rows(out, "state_marginals", v.marginals, M::CLASSES))?,
         Err(e) => writeln!(out, "state_marginals error={e:?}")?,
+    }
+    // The state's full passes, measured for their stack (`STACK_BYTES_STATE` bounds
+    // every state call).
+    let full: [(&str, fn() -> CallResult); 2] = [
+        ("mpe", M::state_mpe),
+        ("labelled_log_likelihood", M::state_labelled_log_likelihood),
+    ];
+    for (name, f) in full {
+        write!(out, "state_call {name} ")?;
+        measured(out, f)?;
     }
     fusion::<M>(out)
 }

@@ -43,13 +43,16 @@ pub trait CompiledMap {
     /// Distinct components of the map: template copies (GraphSPN), trees × places (tree
     /// mixture).
     const NUM_COMPONENTS: usize;
-    /// Upper bound of the stack (bytes) of `log_likelihood` / `labelled_log_likelihood`.
+    /// Upper bound of the stack (bytes) of `log_likelihood` / `labelled_log_likelihood`
+    /// (each `STACK_BYTES_*` is a bound for scalar code, `LANES == 1`, and an estimate
+    /// for SIMD code, whose frames depend on the target features it is built with).
     const STACK_BYTES_LOG_LIKELIHOOD: usize;
     /// Upper bound of the stack (bytes) of `marginals`.
     const STACK_BYTES_MARGINALS: usize;
     /// Upper bound of the stack (bytes) of `mpe`.
     const STACK_BYTES_MPE: usize;
-    /// Upper bound of the stack (bytes) of a state update or query.
+    /// Upper bound of the stack (bytes) of any state call (updates, queries, and the
+    /// state's `mpe` and `labelled_log_likelihood`, which run the stateless passes).
     const STACK_BYTES_STATE: usize;
     /// Bytes of one [`CompiledMap::State`].
     const STATE_BYTES: usize;

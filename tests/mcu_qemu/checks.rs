@@ -563,6 +563,7 @@ pub fn check_tree_acceptance(target: &str, r: &Report) {
     );
     assert!(state <= 64 * 1024, "{target}: STATE_BYTES {state} > 64 KiB");
     let calls = m.calls.iter().chain(m.stream.iter().map(|(c, _)| c));
+    let calls = calls.chain(&m.state_calls);
     for c in calls {
         assert!(
             c.stack <= 16 * 1024,

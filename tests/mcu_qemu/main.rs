@@ -249,7 +249,20 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
                     m.name
                 );
             }
-            let stream = m.stream.iter().map(|(c, _)| c).chain(&m.fusion);
+            // The state's full passes run the stateless ones on the fused evidence:
+            // their stack counts against the state's bound too.
+            let names: Vec<&str> = m.state_calls.iter().map(|c| c.name.as_str()).collect();
+            assert_eq!(
+                names,
+                ["mpe", "labelled_log_likelihood"],
+                "{target} {}",
+                m.name
+            );
+            for c in &m.state_calls {
+                assert!(c.value.is_ok(), "{target} {} state {c:?}", m.name);
+            }
+            let stream = m.stream.iter().map(|(c, _)| c);
+            let stream = stream.chain(&m.fusion).chain(&m.state_calls);
             let stream = stream.map(|c| (c, bounds[i][4]));
             for (call, bound) in m.calls.iter().zip(bounds[i]).chain(stream) {
                 eprintln!(
@@ -347,7 +360,8 @@ fn report_parser_reads_every_record() {
                 marginals 0 3f000000 3f000000\nmarginals 1 3f800000 00000000\nmpe 1 0\n\
                 stream set_all instructions=7 stack=16 value=3f800000\n\
                 step 0 observe_marginals place=1 instructions=3 stack=8 value=3f000000\n\
-                state_marginals 0 3f800000 00000000\nstate_marginals 1 3f000000 3f000000\ndone\n";
+                state_marginals 0 3f800000 00000000\nstate_marginals 1 3f000000 3f000000\n\
+                state_call mpe instructions=9 stack=40 value=3f800000\ndone\n";
     let r = parse(text);
     assert_eq!(r.calibration, (8, 9, 1));
     assert_eq!(r.static_ram, 100);
@@ -365,4 +379,9 @@ fn report_parser_reads_every_record() {
     assert_eq!(m.stream[1].0.name, "observe_marginals");
     assert_eq!((m.stream[1].0.instructions, m.stream[1].1), (3, Some(1)));
     assert_eq!(m.state_marginals[1], [0x3f00_0000, 0x3f00_0000]);
+    assert_eq!(m.state_calls.len(), 1);
+    assert_eq!(
+        (m.state_calls[0].name.as_str(), m.state_calls[0].stack),
+        ("mpe", 40)
+    );
 }

@@ -27,6 +27,8 @@ pub struct MapReport {
     pub state_marginals: Vec<Vec<u32>>,
     /// `STATE_BYTES` of the module (`state=` of the `map` line).
     pub state_bytes: Option<usize>,
+    /// The state's full passes after the last step: `mpe`, `labelled_log_likelihood`.
+    pub state_calls: Vec<Call>,
     /// The adversarial fusion sequence: per phase its last `observe_marginal` call.
     pub fusion: Vec<Call>,
     /// Per phase the state's log-likelihood and the place's marginal (`f32` bits).
@@ -90,6 +92,7 @@ pub fn parse(text: &str) -> Report {
                 state_bytes: line
                     .split_whitespace()
                     .find_map(|w| w.strip_prefix("state=")?.parse().ok()),
+                state_calls: vec![],
                 fusion: vec![],
                 fusion_state: vec![],
             }),
@@ -111,6 +114,11 @@ pub fn parse(text: &str) -> Report {
                 let bits: Result<Vec<u32>, _> = bits.collect();
                 m.fusion_state
                     .push(bits.unwrap_or_else(|_| panic!("fusion state: {line}")));
+            }
+            Some("state_call") => {
+                let call = call(words.next().unwrap(), line);
+                let m = maps.last_mut().expect("a map line first");
+                m.state_calls.push(call);
             }
             Some("call") => {
                 let call = call(words.next().unwrap(), line);

@@ -311,7 +311,7 @@ pub(super) fn report(
     let stack_log_likelihood = with(cache.values, log_likelihood);
     let stack_marginals = with(cache.marginals, marginals);
     let stack_mpe = with(cache.values, mpe);
-    let stack_state = with(cache.state, base + value).max(base + path.max(value + n * c));
+    let state_updates = with(cache.state, base + value).max(base + path.max(value + n * c));
     // The rows, fused rows, messages and exponents, the roots' totals, the `i64` sum
     // of the fused rows' shifts and the ready flag; the `i64` aligns the state to 8.
     let fields = n * c * s + n * fused_bytes(c, s) + t * n * row + 4 * t * n + 4 * t + 8 + 1;
@@ -326,13 +326,13 @@ pub(super) fn report(
     let best = plans.iter().map(ForestPlan::non_roots).max().unwrap_or(0);
     let path_len = |v: usize| plans.iter().map(|p| p.depth[v] + 1).sum::<usize>();
     let worst_path = (0..n).map(|v| path_len(v) - t).max().unwrap_or(0);
-    let report = CodeReport {
+    let mut report = CodeReport {
         lanes: cx.width,
         components: t * n,
         stack_log_likelihood,
         stack_marginals,
         stack_mpe,
-        stack_state,
+        stack_state: 0,
         state_bytes,
         table_bytes,
         macs_log_likelihood: edges * mv,
@@ -342,5 +342,6 @@ pub(super) fn report(
         units_per_update: (0..n).map(path_len).sum::<usize>() as f64 / n.max(1) as f64,
         message_error: None,
     };
+    report.stack_state = report.state_bound(state_updates);
     (report, cache)
 }

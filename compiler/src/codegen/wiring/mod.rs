@@ -675,13 +675,13 @@ fn report(
         (macs, batches.iter().map(|(_, k)| k).sum())
     };
     let worst_update = (0..n).map(|p| update_cost(p).0).max().unwrap_or(0);
-    let report = CodeReport {
+    let mut report = CodeReport {
         lanes: cx.simd_lanes,
         components: u_total,
         stack_log_likelihood: with_table(prescale.values, top + deepest),
         stack_marginals: with_table(prescale.marginals && !one_pass, marginals_stack),
         stack_mpe: with_table(prescale.values, top + deepest),
-        stack_state: top + deepest,
+        stack_state: 0,
         state_bytes: state_bytes(layout, tpls, cx),
         table_bytes,
         macs_log_likelihood: macs_ll,
@@ -691,6 +691,7 @@ fn report(
         units_per_update: (0..n).map(|p| update_cost(p).1).sum::<usize>() as f64 / n.max(1) as f64,
         message_error: None,
     };
+    report.stack_state = report.state_bound(top + deepest);
     report.check_budget(options)?;
     Ok((report, Passes { one_pass, prescale }))
 }
