@@ -45,6 +45,22 @@ pub enum EvidenceError {
         /// What was given.
         found: usize,
     },
+    /// A place index outside the map (`place >= places`), given to a `State` call.
+    PlaceOutOfRange {
+        /// The index given.
+        place: usize,
+        /// Number of places of the map.
+        places: usize,
+    },
+    /// A label that is neither a class index (`< classes`) nor `UNKNOWN` (`u16::MAX`).
+    LabelOutOfRange {
+        /// Index of the place (variable) in model order.
+        place: usize,
+        /// The label given.
+        label: u16,
+        /// Number of classes.
+        classes: usize,
+    },
 }
 
 impl fmt::Display for EvidenceError {
@@ -80,6 +96,20 @@ impl fmt::Display for EvidenceError {
             } => write!(
                 f,
                 "evidence has the wrong shape at place index {place}: expected {expected}, found {found}"
+            ),
+            EvidenceError::PlaceOutOfRange { place, places } => write!(
+                f,
+                "place index {place} is out of range: the map has {places} places (indices 0 to {})",
+                places.saturating_sub(1)
+            ),
+            EvidenceError::LabelOutOfRange {
+                place,
+                label,
+                classes,
+            } => write!(
+                f,
+                "label {label} at place index {place} is not a class: the model has {classes} classes (labels 0 to {}, or u16::MAX for unknown)",
+                classes.saturating_sub(1)
             ),
         }
     }

@@ -40,6 +40,21 @@ fn every_error_says_what_and_where() {
             },
             "evidence has the wrong shape at place index 5: expected 10, found 9",
         ),
+        (
+            EvidenceError::PlaceOutOfRange {
+                place: 80,
+                places: 80,
+            },
+            "place index 80 is out of range: the map has 80 places (indices 0 to 79)",
+        ),
+        (
+            EvidenceError::LabelOutOfRange {
+                place: 3,
+                label: 12,
+                classes: 10,
+            },
+            "label 12 at place index 3 is not a class: the model has 10 classes (labels 0 to 9, or u16::MAX for unknown)",
+        ),
     ];
     for (e, want) in cases {
         assert_eq!(e.to_string(), want);

@@ -221,10 +221,10 @@ where
         // A label past the last class is refused, naming its place.
         let mut bad = case.labels.clone();
         bad[n - 1] = c as u16;
-        let refused = Err(EvidenceError::WrongShape {
+        let refused = Err(EvidenceError::LabelOutOfRange {
             place: n - 1,
-            expected: c,
-            found: c,
+            label: c as u16,
+            classes: c,
         });
         assert_eq!(M::labelled_log_likelihood(&bad, &e), refused, "{name}");
         let mut labels = vec![0u16; n];

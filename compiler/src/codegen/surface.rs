@@ -257,7 +257,7 @@ pub(super) fn checked_labelled(l: &Lit) -> TokenStream {
         &[
             " Natural log of the likelihood of the evidence with every labelled place restricted",
             " to its label (`UNKNOWN`: the whole row is used); labels `≥ NUM_CLASSES` are",
-            " rejected as `WrongShape { place, expected: NUM_CLASSES, found: label }`.",
+            " rejected as `LabelOutOfRange { place, label, classes: NUM_CLASSES }`.",
         ],
         "labelled_log_likelihood",
         quote!(labels: &Labels, e: &Evidence),

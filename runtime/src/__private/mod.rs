@@ -9,17 +9,17 @@ use crate::EvidenceError;
 pub use crate::compiled::{fixed, fixed_mut};
 
 /// Checks labels: each must be `< C` or `u16::MAX` (unknown). A bad label at place `p`
-/// is reported as `WrongShape { place: p, expected: C, found: label }`.
+/// is reported as `LabelOutOfRange { place: p, label, classes: C }`.
 pub fn check_labels<const N: usize>(
     labels: &[u16; N],
     classes: usize,
 ) -> Result<(), EvidenceError> {
     for (p, &l) in labels.iter().enumerate() {
         if l != u16::MAX && usize::from(l) >= classes {
-            return Err(EvidenceError::WrongShape {
+            return Err(EvidenceError::LabelOutOfRange {
                 place: p,
-                expected: classes,
-                found: usize::from(l),
+                label: l,
+                classes,
             });
         }
     }

@@ -322,7 +322,7 @@ fn update_methods(cx: &Context, table: bool, log_space: bool) -> TokenStream {
     let err = quote!(::graphspn_runtime::EvidenceError);
     quote! {
         fn place_index(place: usize) -> Result<u32, #err> {
-            PLACE_IDS.get(place).copied().ok_or(::graphspn_runtime::EvidenceError::WrongShape { place, expected: NUM_PLACES, found: place })
+            PLACE_IDS.get(place).copied().ok_or(::graphspn_runtime::EvidenceError::PlaceOutOfRange { place, places: NUM_PLACES })
         }
 
         /// Sets the evidence row of `place` (place index) and updates the cache. An invalid

@@ -61,13 +61,11 @@ impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize> D
     }
 }
 
-/// `place`'s id, or `WrongShape` when `place` is not a place index.
+/// `place`'s id, or `PlaceOutOfRange` when `place` is not a place index.
 fn place_id<const N: usize>(ids: &[u32; N], place: usize) -> Result<u32, EvidenceError> {
-    ids.get(place).copied().ok_or(EvidenceError::WrongShape {
-        place,
-        expected: N,
-        found: place,
-    })
+    ids.get(place)
+        .copied()
+        .ok_or(EvidenceError::PlaceOutOfRange { place, places: N })
 }
 
 impl<V: Lanes, const C: usize, const K: usize, const N: usize, const T: usize>
