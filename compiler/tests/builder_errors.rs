@@ -18,7 +18,21 @@ fn missing_model_names_the_file() {
         .generate()
         .unwrap_err();
     assert!(matches!(err, BuildError::Model { .. }), "{err}");
-    assert!(err.to_string().contains("/nonexistent/model.json"), "{err}");
+    // Named once, not once by the builder and again by the file's own error.
+    assert_eq!(
+        err.to_string().matches("/nonexistent/model.json").count(),
+        1,
+        "{err}"
+    );
+    let err = Builder::new(demo().join("model.json"), "/nonexistent/floor.json")
+        .generate()
+        .unwrap_err();
+    assert!(matches!(err, BuildError::Map { .. }), "{err}");
+    assert_eq!(
+        err.to_string().matches("/nonexistent/floor.json").count(),
+        1,
+        "{err}"
+    );
 }
 
 #[test]
