@@ -24,6 +24,14 @@ fn missing_model_names_the_file() {
         1,
         "{err}"
     );
+    // The one-call form reports it too (it returns the written path, never a default).
+    let err = graphspn_compiler::codegen::compile(
+        "/nonexistent/model.json",
+        demo().join("floor.json"),
+        "floor",
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("/nonexistent/model.json"), "{err}");
     let err = Builder::new(demo().join("model.json"), "/nonexistent/floor.json")
         .generate()
         .unwrap_err();
