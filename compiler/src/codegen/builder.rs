@@ -20,7 +20,7 @@ use crate::decompose::{
 };
 use crate::family::AnyModel;
 use crate::learn::{Model, ModelFileError};
-use crate::map::{ClassSet, MapError, TopoMap, cold};
+use crate::map::{ClassSet, MapError, MapFitError, TopoMap, cold};
 use crate::treemix::{SpanningTrees, TreeMixError, TreeMixture};
 
 /// The first line of every generated file starts with this text; [`is_generated_file`]
@@ -504,16 +504,23 @@ impl Builder {
         self
     }
 
-    /// The model's and the map's classes must be the same, in the same order.
-    fn check_classes(&self, model: &ClassSet, map: &TopoMap) -> Result<(), BuildError> {
-        if model.names() == map.classes.names() {
-            return Ok(());
-        }
-        Err(BuildError::ClassesDiffer {
-            model: self.model.clone(),
-            model_classes: model.names().to_vec(),
-            map: self.map.clone(),
-            map_classes: map.classes.names().to_vec(),
+    /// Whether a model of `classes` can label `map` (the check every model family
+    /// shares, [`TopoMap::check_labellable`]), its errors naming the builder's files.
+    fn check_classes(&self, classes: &ClassSet, map: &TopoMap) -> Result<(), BuildError> {
+        map.check_labellable(classes).map_err(|e| match e {
+            MapFitError::ClassMismatch {
+                map_classes,
+                model_classes,
+                ..
+            } => BuildError::ClassesDiffer {
+                model: self.model.clone(),
+                model_classes,
+                map: self.map.clone(),
+                map_classes,
+            },
+            MapFitError::Empty(_) => BuildError::EmptyMap {
+                path: self.map.clone(),
+            },
         })
     }
 
