@@ -33,6 +33,7 @@
 //! [`Builder`] and [`compile`] wrap [`generate`] for `build.rs` scripts.
 
 pub mod analysis;
+mod build_error;
 mod builder;
 mod emit;
 mod fixed;
@@ -45,10 +46,10 @@ mod wiring;
 
 pub use surface::CodeReport;
 
+pub use build_error::BuildError;
 pub use builder::{
-    AnyInputs, BuildError, Builder, GENERATED_MARKER, Inputs, TreeInputs, check_module_name,
-    compile, is_generated_file, load_any_model, load_decompositions, load_map, load_model,
-    write_if_changed,
+    AnyInputs, Builder, GENERATED_MARKER, Inputs, TreeInputs, check_module_name, compile,
+    is_generated_file, load_any_model, load_decompositions, load_map, load_model, write_if_changed,
 };
 
 use thiserror::Error;

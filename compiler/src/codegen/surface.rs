@@ -36,7 +36,7 @@ pub struct CodeReport {
     pub stack_mpe: usize,
     /// Upper bound of the stack of any `State` call (bytes): an update plus query, and
     /// `State::mpe` / `State::labelled_log_likelihood`, which run the stateless passes
-    /// on the fused evidence (see [`CodeReport::state_bound`]).
+    /// on the fused evidence.
     pub stack_state: usize,
     /// Size of the streaming state (bytes): the tree mixture's exactly, the GraphSPN's
     /// up to the alignment padding of its fields (at most 16 bytes over).
