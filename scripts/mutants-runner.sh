@@ -121,7 +121,10 @@ for ((i = 0; i < count; i++)); do
     # Where in its function (absolute when it is in none): tells apart the same
     # mutation twice in one function.
     at=$(jq -r ".[$i] | \"@+\(.span.start.line - (.function.span.start.line // 0)):\(.span.start.column)\"" "$list")
-    if [[ -n $record ]] && cut -f2,3 "$record" | grep -qxF "$file"$'\t'"$what $at"; then
+    # Read to the end (no `grep -q` on a pipe: under `pipefail` its early exit fails
+    # the pipeline with SIGPIPE, and a mutant recorded early in the file ran again).
+    if [[ -n $record ]] && key="$file"$'\t'"$what $at" awk -F'\t' \
+        '$2 "\t" $3 == ENVIRON["key"] { found = 1 } END { exit !found }' "$record"; then
         continue
     fi
     start=$SECONDS
