@@ -366,3 +366,21 @@ fn a_folder_among_the_maps_without_nodes_dat_is_an_error_naming_it() {
         "{msg}"
     );
 }
+
+/// Two files of one folder that hold maps of the same name: refused, naming both
+/// files (results are kept per map name, so `evaluate` merged them into one map).
+#[test]
+fn two_maps_of_one_name_in_a_set_are_an_error_naming_both_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let floor =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../generated/demo/floor.json");
+    std::fs::copy(&floor, dir.path().join("a.json")).unwrap();
+    std::fs::copy(&floor, dir.path().join("b.json")).unwrap();
+    let err = graphspn_compiler::map::load_map_set(dir.path()).unwrap_err();
+    assert!(matches!(err, MapError::DuplicateMapName { .. }), "{err}");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("a.json") && msg.contains("b.json") && msg.contains("n80_seed1"),
+        "{msg}"
+    );
+}

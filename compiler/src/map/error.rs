@@ -162,6 +162,17 @@ pub enum MapError {
         /// The sub-folder.
         path: PathBuf,
     },
+    /// Two maps of one set carry the same name (results are kept per map name, so
+    /// they would be merged into one).
+    #[error("{} and {}: both maps are named {name:?}; a map set needs one name per map (rename one in its file)", first.display(), second.display())]
+    DuplicateMapName {
+        /// The name.
+        name: String,
+        /// The first file or folder with it.
+        first: PathBuf,
+        /// The second.
+        second: PathBuf,
+    },
     /// Two places share an id.
     #[error("place id {id} appears twice")]
     DuplicatePlace {

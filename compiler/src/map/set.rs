@@ -15,7 +15,7 @@ use super::{MapError, TopoMap, cold};
 
 /// The maps a path holds (see the module docs), in a fixed order. Errors name the
 /// path: missing, unreadable, a malformed map, a sub-folder that is not a COLD
-/// sequence, or a folder with no map at all.
+/// sequence, two maps of the same name, or a folder with no map at all.
 pub fn load_map_set(path: impl AsRef<Path>) -> Result<Vec<TopoMap>, MapError> {
     load_map_set_report(path).map(|(maps, _)| maps)
 }
@@ -42,7 +42,8 @@ pub fn load_map_set_report(
         .map(|e| e.map(|e| e.path()).map_err(|e| MapError::io(path, e)))
         .collect::<Result<_, _>>()?;
     entries.sort();
-    let mut maps = Vec::new();
+    let mut maps: Vec<TopoMap> = Vec::new();
+    let mut sources: Vec<PathBuf> = Vec::new();
     let mut ignored = Vec::new();
     for p in entries {
         let hidden = p
@@ -60,7 +61,17 @@ pub fn load_map_set_report(
             maps.push(TopoMap::load(&p)?);
         } else {
             ignored.push(p);
+            continue;
         }
+        let name = &maps[maps.len() - 1].name;
+        if let Some(k) = maps[..maps.len() - 1].iter().position(|m| m.name == *name) {
+            return Err(MapError::DuplicateMapName {
+                name: name.clone(),
+                first: sources[k].clone(),
+                second: p,
+            });
+        }
+        sources.push(p);
     }
     if maps.is_empty() {
         return Err(MapError::NoMaps {
