@@ -524,13 +524,15 @@ pub fn derive_seed(base: u64, parts: &[u64]) -> u64 {
 }
 
 /// Table 1 statistics at `level`, pooled over `rounds` simulations of every
-/// truth vector in `truths` (seed of map `m`, round `r`: `derive_seed(seed, [level, m, r])`).
+/// truth vector in `truths` with wrong classes drawn as `draw` (seed of map `m`, round
+/// `r`: `derive_seed(seed, [level, m, r])`).
 pub fn level_statistics(
     truths: &[Vec<ClassId>],
     num_classes: usize,
     level: NoiseLevel,
     rounds: usize,
     seed: u64,
+    draw: WrongClassDraw,
 ) -> Result<LevelStats, EvidenceSimError> {
     let params = level.params();
     let mut dg = Vec::new();
@@ -538,7 +540,8 @@ pub fn level_statistics(
     for (m, truth) in truths.iter().enumerate() {
         for r in 0..rounds {
             let s = derive_seed(seed, &[level.get() as u64, m as u64, r as u64]);
-            let ev = simulate_evidence(truth, num_classes, &vec![false; truth.len()], &params, s)?;
+            let none = vec![false; truth.len()];
+            let ev = simulate_evidence_with(truth, num_classes, &none, &params, s, draw)?;
             let (g, i) = evidence_statistics(truth, &ev);
             dg.extend(g);
             di.extend(i);

@@ -468,21 +468,21 @@ pub fn run(
             source,
         })?;
     let mut table1 = Vec::new();
-    if cfg.wrong_draw == WrongClassDraw::Others {
-        for &level in &cfg.levels {
-            let st: LevelStats = level_statistics(&truths, 10, level, cfg.rounds, cfg.seed)
-                .map_err(|source| ReproduceError::Evidence {
+    for &level in &cfg.levels {
+        let st: LevelStats =
+            level_statistics(&truths, 10, level, cfg.rounds, cfg.seed, cfg.wrong_draw).map_err(
+                |source| ReproduceError::Evidence {
                     map: "test maps".into(),
                     source,
-                })?;
-            table1.push((
-                level.get(),
-                st.d_groundtruth.mean,
-                st.d_groundtruth.std,
-                st.d_incorrect.mean,
-                st.d_incorrect.std,
-            ));
-        }
+                },
+            )?;
+        table1.push((
+            level.get(),
+            st.d_groundtruth.mean,
+            st.d_groundtruth.std,
+            st.d_incorrect.mean,
+            st.d_incorrect.std,
+        ));
     }
     let ceiling = setups
         .iter()
