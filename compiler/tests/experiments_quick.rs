@@ -75,6 +75,21 @@ fn quick_reproduction_on_cold() {
     let report1 = std::fs::read_to_string(one.path().join("REPORT.md")).unwrap();
     let h = head(&report1);
     assert_eq!(h.matches(" | ").count(), 6, "{h}");
+    // Without novelty detection (`--no-novelty`) the report names no ROC figure and
+    // says it was not run.
+    assert!(report.contains("`roc.svg`"));
+    let mut plain = rep.clone();
+    plain.auc.clear();
+    plain.within_map.clear();
+    plain.novelty.clear();
+    let no_novelty = tempfile::tempdir().unwrap();
+    write_outputs(&plain, &setups, &cfg, no_novelty.path(), "").expect("write outputs");
+    let report2 = std::fs::read_to_string(no_novelty.path().join("REPORT.md")).unwrap();
+    assert!(
+        !report2.contains("roc.svg") && report2.contains("Novelty detection was not run"),
+        "{report2}"
+    );
+    assert!(report.contains("1 round per map") && !report.contains("1 rounds"));
     assert_eq!(h.matches(&format!("NL{lowest}")).count(), 3, "{h}");
     let json = std::fs::read_to_string(out.path().join("results.json")).unwrap();
     let parsed: Reproduction = serde_json::from_str(&json).expect("results.json parses");

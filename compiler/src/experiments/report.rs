@@ -98,6 +98,11 @@ fn map_sets_section(ev: &Evaluation) -> String {
     s
 }
 
+/// `1 round`, `3 rounds`.
+fn rounds(n: usize) -> String {
+    format!("{n} round{}", if n == 1 { "" } else { "s" })
+}
+
 fn settings_section(rep: &Reproduction) -> String {
     let mut s = String::new();
     s.push_str(&settings_table(
@@ -433,9 +438,11 @@ fn report_markdown(
         let _ = writeln!(
             s,
             "\n## Evidence statistics (paper Table 1)\n\n\
-             On the test maps' ground truth, {} rounds per map.\n\n\
+             Evidence drawn on the test maps' ground truth for these statistics alone \
+             (seeded by level, map and round), {} per map; mean ± standard deviation \
+             over places.\n\n\
              | NL | D_groundtruth ours | paper | D_incorrect ours | paper |\n|---|---|---|---|---|",
-            cfg.rounds
+            rounds(cfg.rounds)
         );
         for &(l, gm, gs, im, is) in &rep.table1 {
             let p = PAPER_TABLE1[(l - 1) as usize];
@@ -454,13 +461,14 @@ fn report_markdown(
         let _ = writeln!(
             s,
             "\n## Evidence statistics\n\n\
-             The evidence simulated on the test maps' ground truth, {} rounds per map \
-             (mean ± standard deviation): D_groundtruth, over the places with correct \
+             Evidence drawn on the test maps' ground truth for these statistics alone \
+             (seeded by level, map and round), {} per map (mean ± standard deviation \
+             over places): D_groundtruth, over the places with correct \
              evidence, the true class's value minus the highest other one; D_incorrect, \
              over the places with wrong evidence, the highest value minus the true \
              class's.\n\n\
              | NL | D_groundtruth | D_incorrect |\n|---|---|---|",
-            cfg.rounds
+            rounds(cfg.rounds)
         );
         for &(l, gm, gs, im, is) in &rep.table1 {
             let _ = writeln!(
@@ -472,12 +480,17 @@ fn report_markdown(
         }
     }
     let _ = writeln!(s, "\n## Figures\n");
+    let roc = if rep.auc.is_empty() {
+        "Novelty detection was not run (`--no-novelty`): no ROC figure. "
+    } else {
+        "`roc.svg`, `roc_local.svg`: novelty-detection ROC of the paper's and of the \
+         local swaps. "
+    };
     let _ = writeln!(
         s,
         "`accuracy_*.svg`: accuracy vs noise level per test building (lines: models, \
          dashed: paper-style; grey dashed: evidence only; bars: map-level bootstrap 95% \
-         intervals). `roc.svg`, `roc_local.svg`: novelty-detection ROC of the paper's \
-         and of the local swaps. \
+         intervals). {roc}\
          `{labels}_*.svg`: first test map at {fig_level} (ground truth; places whose \
          evidence argmax is wrong in black; the tree mixture's, GraphSPN's and MRF-2's \
          labels). `placeholders_*.svg`: the tree mixture's and GraphSPN's marginals of \
