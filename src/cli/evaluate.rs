@@ -36,7 +36,9 @@ buildings are never read before testing.
 Sets are reported under their folder or file names. A test folder called like a training
 building (e.g. your own Stockholm maps in a folder `Stockholm`, beside the bundled COLD
 Stockholm) is reported as NAME-test, and REPORT.md lists which set is which; give
---maps NAME=PATH (or --train NAME=PATH) to choose a name yourself.")]
+--maps NAME=PATH (or --train NAME=PATH) to choose a name yourself. A set's name also
+seeds its evidence draws and the validation's (with --seed): renaming a set draws other
+evidence, and renaming a training set can change the settings the validation picks.")]
 pub struct EvaluateArgs {
     /// A test building (repeatable): JSON map, COLD sequence folder, or folder of maps;
     /// NAME=PATH reports it as NAME (default: the folder or file name).
