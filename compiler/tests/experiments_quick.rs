@@ -90,6 +90,11 @@ fn quick_reproduction_on_cold() {
         "{report2}"
     );
     assert!(report.contains("1 round per map") && !report.contains("1 rounds"));
+    // The quick run's validation is a reduced search, and the report says so.
+    assert!(
+        report.contains("The search: ") && report.contains("**a reduced search**"),
+        "{report}"
+    );
     assert_eq!(h.matches(&format!("NL{lowest}")).count(), 3, "{h}");
     let json = std::fs::read_to_string(out.path().join("results.json")).unwrap();
     let parsed: Reproduction = serde_json::from_str(&json).expect("results.json parses");

@@ -191,7 +191,7 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
         .map(|v| (v.test_building.clone(), v.chosen.clone()))
         .collect();
     let json = serde_json::json!({ "settings": settings, "validation": vals });
-    let md = validation_markdown(&vals, start.elapsed().as_secs_f64());
+    let md = validation_markdown(&vals, &cfg.grid, start.elapsed().as_secs_f64());
     write_folder(&args.run.out, |dir| {
         std::fs::write(
             dir.join("validation.json"),

@@ -14,7 +14,7 @@ use super::reproduce::{BuildingSetup, ReproduceError, run_graph};
 use super::result_tables::{accuracy_table, bp_convergence, ceiling_section, paired_tables};
 use super::results::{Experiment, Reproduction};
 use super::sets::{Evaluation, SetRole};
-use super::validation_report::{option_summary, settings_table, validation_tables};
+use super::validation_report::{option_summary, search_summary, settings_table, validation_tables};
 
 pub use super::figures::{accuracy_plot, compose_side_by_side, roc_plot};
 pub use super::stats::{
@@ -253,8 +253,9 @@ fn report_markdown(
     } else {
         format!(
             "Every setting below was chosen by leave-one-training-building-out validation \
-             on {} only; the test maps are never read by it (`graphspn validate`).",
-            training_wording(rep)
+             on {} only; the test maps are never read by it (`graphspn validate`). {}",
+            training_wording(rep),
+            search_summary(&rep.validation, &cfg.grid)
         )
     };
     let _ = writeln!(

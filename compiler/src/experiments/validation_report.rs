@@ -4,11 +4,64 @@
 
 use std::fmt::Write as _;
 
+use super::grid::ValidationGrid;
+
+/// What a validation searched: candidates per model (from `vals`, the first test
+/// building's) and the sample of each validation building (`grid`), saying so when
+/// that sample is smaller than the standard grid's (a smoke run such as `--tiny-grid`
+/// or `--quick`, not the protocol's search). Empty without a validation.
+pub fn search_summary(vals: &[super::validate::Validation], grid: &ValidationGrid) -> String {
+    let Some(first) = vals.first() else {
+        return String::new();
+    };
+    let counts: Vec<String> = VALIDATED
+        .iter()
+        .map(|m| {
+            let n = first.candidates.iter().filter(|c| c.model == *m).count();
+            format!("{n} {m}")
+        })
+        .collect();
+    let levels: Vec<String> = grid
+        .levels
+        .iter()
+        .map(|l| format!("NL{}", l.get()))
+        .collect();
+    let standard = ValidationGrid::standard();
+    let smaller = grid.maps_per_building < standard.maps_per_building
+        || grid.levels.len() < standard.levels.len()
+        || grid.rounds < standard.rounds;
+    format!(
+        "The search: {} candidates, on {} map{} × {} × {} round{} per validation building{}.",
+        counts.join(", "),
+        grid.maps_per_building,
+        if grid.maps_per_building == 1 { "" } else { "s" },
+        levels.join(", "),
+        grid.rounds,
+        if grid.rounds == 1 { "" } else { "s" },
+        if smaller {
+            format!(
+                " — **a reduced search** (a smoke run, e.g. `--tiny-grid` or `--quick`), not \
+                 the protocol's ({} maps × {} levels × {} rounds)",
+                standard.maps_per_building,
+                standard.levels.len(),
+                standard.rounds
+            )
+        } else {
+            String::new()
+        }
+    )
+}
+
 /// VALIDATION.md of `graphspn validate`: the chosen settings and every candidate's score.
-pub fn validation_markdown(vals: &[super::validate::Validation], seconds: f64) -> String {
+pub fn validation_markdown(
+    vals: &[super::validate::Validation],
+    grid: &ValidationGrid,
+    seconds: f64,
+) -> String {
     let mut s = format!(
         "# Validation of every model's settings\n\nLeave-one-training-building-out, per \
-         test building; the test building is never read. Run time {seconds:.1} s.\n\n"
+         test building; the test building is never read. {} Run time {seconds:.1} s.\n\n",
+        search_summary(vals, grid)
     );
     s.push_str(&settings_table(
         vals.iter().map(|v| (v.test_building.as_str(), &v.chosen)),
