@@ -178,6 +178,14 @@ fn tree_mixture_models_compile_through_the_builder() {
         .unwrap();
     assert!(src.contains("pub const MODEL_FAMILY: &str = \"tree_mixture\";"));
     assert!(src.contains("pub const NUM_TREES: usize = 2;"));
+    // What `graphspn compile` reports as mixed at the root: trees here, decompositions
+    // for a GraphSPN.
+    let b = Builder::new(&trees, &floor).seed(0).count(2);
+    assert_eq!(b.load_any().unwrap().components(), 2);
+    let b = Builder::new(demo().join("model.json"), &floor)
+        .seed(0)
+        .count(3);
+    assert_eq!(b.load_any().unwrap().components(), 3);
     let other = Builder::new(&trees, &floor)
         .seed(1)
         .count(2)
