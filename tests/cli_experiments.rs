@@ -295,6 +295,7 @@ fn evaluate_reuses_a_saved_validation() {
         "Every setting below was given (`--settings`",
         "| Stockholm | Freiburg, Saarbrucken |",
         "; training: epochs = 2 |",
+        "all maps (2 in all) × 1 round per building and level",
     ] {
         assert!(report.contains(want), "REPORT.md lacks {want:?}:\n{report}");
     }

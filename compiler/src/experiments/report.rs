@@ -224,15 +224,16 @@ fn report_markdown(
     }
     let _ = writeln!(
         s,
-        "Seed {}; {} test building{}; {} maps × {} round{} per building and level; \
+        "Seed {}; {} test building{}; {} × {} round{} per building and level; \
          evidence noise: {}. Run time {:.1} s.\n",
         rep.seed,
         rep.buildings.len(),
         if rep.buildings.len() == 1 { "" } else { "s" },
         if cfg.maps_per_building == usize::MAX {
-            "all".to_string()
+            let n: usize = rep.buildings.iter().map(|b| b.test_maps.len()).sum();
+            format!("all maps ({n} in all)")
         } else {
-            cfg.maps_per_building.to_string()
+            format!("{} maps", cfg.maps_per_building)
         },
         cfg.rounds,
         if cfg.rounds == 1 { "" } else { "s" },
