@@ -79,6 +79,8 @@ fn quick_reproduction_on_cold() {
     // says it was not run.
     assert!(report.contains("`roc.svg`"));
     let mut plain = rep.clone();
+    // The paper gives NL1's D_incorrect as 0.0 without a spread: shown so.
+    plain.table1.insert(0, (1, 0.99, 0.001, 0.0, 0.0));
     plain.auc.clear();
     plain.within_map.clear();
     plain.novelty.clear();
@@ -89,6 +91,11 @@ fn quick_reproduction_on_cold() {
         !report2.contains("roc.svg") && report2.contains("Novelty detection was not run"),
         "{report2}"
     );
+    let nl1 = report2
+        .lines()
+        .find(|l| l.starts_with("| 1 | "))
+        .expect("NL1 row");
+    assert!(nl1.ends_with("| 0.0 |"), "{nl1}");
     assert!(report.contains("1 round per map") && !report.contains("1 rounds"));
     // The quick run's validation is a reduced search, and the report says so.
     assert!(
