@@ -14,7 +14,9 @@ use super::reproduce::{BuildingSetup, ReproduceError, run_graph};
 use super::result_tables::{accuracy_table, bp_convergence, ceiling_section, paired_tables};
 use super::results::{Experiment, Reproduction};
 use super::sets::{Evaluation, SetRole};
-use super::validation_report::{option_summary, search_summary, settings_table, validation_tables};
+use super::validation_report::{
+    counted, option_summary, search_summary, settings_table, validation_tables,
+};
 
 pub use super::figures::{accuracy_plot, compose_side_by_side, roc_plot};
 pub use super::stats::{
@@ -96,11 +98,6 @@ fn map_sets_section(ev: &Evaluation) -> String {
     }
     s.push('\n');
     s
-}
-
-/// `1 round`, `3 rounds`.
-fn rounds(n: usize) -> String {
-    format!("{n} round{}", if n == 1 { "" } else { "s" })
 }
 
 fn settings_section(rep: &Reproduction) -> String {
@@ -224,19 +221,17 @@ fn report_markdown(
     }
     let _ = writeln!(
         s,
-        "Seed {}; {} test building{}; {} × {} round{} per building and level; \
+        "Seed {}; {}; {} × {} per building and level; \
          evidence noise: {}. Run time {:.1} s.\n",
         rep.seed,
-        rep.buildings.len(),
-        if rep.buildings.len() == 1 { "" } else { "s" },
+        counted(rep.buildings.len(), "test building"),
         if cfg.maps_per_building == usize::MAX {
             let n: usize = rep.buildings.iter().map(|b| b.test_maps.len()).sum();
             format!("all maps ({n} in all)")
         } else {
-            format!("{} maps", cfg.maps_per_building)
+            counted(cfg.maps_per_building, "map")
         },
-        cfg.rounds,
-        if cfg.rounds == 1 { "" } else { "s" },
+        counted(cfg.rounds, "round"),
         if rep.paper_noise {
             "**paper-effective** (wrong class drawn among all 10 classes, `--paper-noise`)"
         } else {
@@ -444,7 +439,7 @@ fn report_markdown(
              (seeded by level, map and round), {} per map; mean ± standard deviation \
              over places.\n\n\
              | NL | D_groundtruth ours | paper | D_incorrect ours | paper |\n|---|---|---|---|---|",
-            rounds(cfg.rounds)
+            counted(cfg.rounds, "round")
         );
         for &(l, gm, gs, im, is) in &rep.table1 {
             let p = PAPER_TABLE1[(l - 1) as usize];
@@ -474,7 +469,7 @@ fn report_markdown(
              over the places with wrong evidence, the highest value minus the true \
              class's.\n\n\
              | NL | D_groundtruth | D_incorrect |\n|---|---|---|",
-            rounds(cfg.rounds)
+            counted(cfg.rounds, "round")
         );
         for &(l, gm, gs, im, is) in &rep.table1 {
             let _ = writeln!(

@@ -6,6 +6,11 @@ use std::fmt::Write as _;
 
 use super::grid::ValidationGrid;
 
+/// `n` and the noun, plural unless `n` is 1: `1 round`, `3 rounds`.
+pub(crate) fn counted(n: usize, noun: &str) -> String {
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
+}
+
 /// What a validation searched: candidates per model (from `vals`, the first test
 /// building's) and the sample of each validation building (`grid`), saying so when
 /// that sample is smaller than the standard grid's (a smoke run such as `--tiny-grid`
@@ -31,13 +36,11 @@ pub fn search_summary(vals: &[super::validate::Validation], grid: &ValidationGri
         || grid.levels.len() < standard.levels.len()
         || grid.rounds < standard.rounds;
     format!(
-        "The search: {} candidates, on {} map{} × {} × {} round{} per validation building{}.",
+        "The search: {} candidates, on {} × {} × {} per validation building{}.",
         counts.join(", "),
-        grid.maps_per_building,
-        if grid.maps_per_building == 1 { "" } else { "s" },
+        counted(grid.maps_per_building, "map"),
         levels.join(", "),
-        grid.rounds,
-        if grid.rounds == 1 { "" } else { "s" },
+        counted(grid.rounds, "round"),
         if smaller {
             format!(
                 " — **a reduced search** (a smoke run, e.g. `--tiny-grid` or `--quick`), not \
