@@ -456,10 +456,18 @@ pub fn d_incorrect(row: &[f64], truth: usize) -> f64 {
     row.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - row[truth]
 }
 
+/// A number, or NaN where JSON holds `null` (serde_json writes NaN so).
+fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    use serde::Deserialize;
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
 /// Mean and sample standard deviation of a set of values.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MeanStd {
-    /// Arithmetic mean (NaN when empty).
+    /// Arithmetic mean (NaN when empty; JSON has no NaN, so it is written `null` and
+    /// read back as NaN).
+    #[serde(deserialize_with = "nan_if_null")]
     pub mean: f64,
     /// Sample standard deviation (divisor `n − 1`; 0 when `n ≤ 1`).
     pub std: f64,

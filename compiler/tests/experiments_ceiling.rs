@@ -42,14 +42,17 @@ fn the_oracle_learns_what_follows_a_doorway_and_backs_off() {
     let row = placeholder_ceiling("B", &train, &test);
     assert_eq!(row.placeholders, 2);
     assert_eq!(row.per_map.len(), 2);
-    assert_eq!(row.per_map[0].1, 0.0, "one hop: the tie goes to class 1");
-    assert_eq!(row.per_map[1].1, 1.0);
+    assert_eq!(
+        row.per_map[0].one_hop, 0.0,
+        "one hop: the tie goes to class 1"
+    );
+    assert_eq!(row.per_map[1].one_hop, 1.0);
     assert_eq!(row.two_hop, Some(1.0), "two hops tell the sides apart");
     assert_eq!(row.one_hop, Some(0.5));
     // An unseen two-hop context backs off to one hop.
     let unseen = vec![path(2, 0, 1, Some(3))];
     let row = placeholder_ceiling("B", &train, &unseen);
-    assert_eq!(row.per_map[0].2, row.per_map[0].1);
+    assert_eq!(row.per_map[0].two_hop, row.per_map[0].one_hop);
     // Test maps without placeholders measure nothing: no accuracy, not 0%.
     let explored: Vec<_> = test
         .iter()

@@ -8,8 +8,10 @@ use std::path::PathBuf;
 use graphspn_compiler::experiments::config::ReproduceConfig;
 use graphspn_compiler::experiments::report::write_outputs;
 use graphspn_compiler::experiments::reproduce::{load_data, run};
-use graphspn_compiler::experiments::results::{Experiment, Reproduction};
+use graphspn_compiler::experiments::results::{Experiment, Reproduction, Table1Row};
+use graphspn_compiler::experiments::summary::SummaryCell;
 use graphspn_compiler::learn::Progress;
+use graphspn_compiler::noise::MeanStd;
 
 fn data() -> PathBuf {
     let d = graphspn_compiler::map::cold::data_dir(None);
@@ -80,7 +82,15 @@ fn quick_reproduction_on_cold() {
     assert!(report.contains("`roc.svg`"));
     let mut plain = rep.clone();
     // The paper gives NL1's D_incorrect as 0.0 without a spread: shown so.
-    plain.table1.insert(0, (1, 0.99, 0.001, 0.0, 0.0));
+    let stat = |mean, std| MeanStd { mean, std, n: 10 };
+    plain.table1.insert(
+        0,
+        Table1Row {
+            level: 1,
+            d_groundtruth: stat(0.99, 0.001),
+            d_incorrect: stat(f64::NAN, 0.0),
+        },
+    );
     plain.auc.clear();
     plain.within_map.clear();
     plain.novelty.clear();
@@ -95,7 +105,12 @@ fn quick_reproduction_on_cold() {
         .lines()
         .find(|l| l.starts_with("| 1 | "))
         .expect("NL1 row");
-    assert!(nl1.ends_with("| 0.0 |"), "{nl1}");
+    assert!(nl1.ends_with("| – | 0.0 |"), "{nl1}");
+    // A statistic over no place is written as null and read back as NaN.
+    let json2 = std::fs::read_to_string(no_novelty.path().join("results.json")).unwrap();
+    let back: Reproduction = serde_json::from_str(&json2).expect("results.json parses");
+    assert!(back.table1[0].d_incorrect.mean.is_nan());
+    assert_eq!(back.table1[1..], plain.table1[1..]);
     assert!(report.contains("1 round per map") && !report.contains("1 rounds"));
     // The quick run's validation is a reduced search, and the report says so.
     assert!(
@@ -153,8 +168,40 @@ fn quick_reproduction_on_cold() {
         assert!(n["score"]["Tree mixture"].is_number());
     }
     assert_eq!(parsed.auc.len(), 2, "both novelty sets scored");
-    for (_, auc) in &parsed.auc {
-        assert!(auc.0.iter().all(|a| (0.0..=1.0).contains(a)));
+    for auc in &parsed.auc {
+        assert!(auc.scores.0.iter().all(|a| (0.0..=1.0).contains(a)));
+    }
+    assert_eq!(raw["auc"][0]["set"], "paper");
+    assert!(raw["table1"][0]["d_groundtruth"]["mean"].is_number());
+    // results.json carries the report's summary figures: every cell, with the same
+    // interval REPORT.md prints.
+    let summary = raw["summary"].as_array().expect("summary");
+    assert_eq!(
+        summary.len(),
+        2 * 2,
+        "1 building × 2 experiments × 2 levels"
+    );
+    for c in summary {
+        let cell: SummaryCell = serde_json::from_value(c.clone()).expect("a summary cell");
+        let acc = cell.accuracy.0[0].expect("tree mixture scored");
+        assert!(acc.low <= acc.mean && acc.mean <= acc.high, "{cell:?}");
+        assert_eq!(cell.paired.len(), 2);
+        assert_eq!(cell.paired[0].model, "Tree mixture");
+        assert!(["MRF-2", "MRF-3"].contains(&cell.better_tuned_mrf.as_str()));
+        let row = "| Stockholm | Tree mixture | ";
+        let line = report
+            .lines()
+            .filter(|l| l.starts_with(row))
+            .nth(cell.experiment as usize)
+            .expect("accuracy row");
+        assert!(
+            line.contains(&acc.percent()),
+            "{line} lacks {}",
+            acc.percent()
+        );
+        let d = cell.paired[0].difference.expect("paired difference");
+        let shown = format!("{} vs {}", d.percent(), cell.paired[0].baseline);
+        assert!(report.contains(&shown), "REPORT.md lacks {shown}");
     }
 }
 

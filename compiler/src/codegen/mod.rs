@@ -330,7 +330,20 @@ fn render(
 
 #[cfg(test)]
 mod tests {
-    use super::Vectorisation;
+    use super::{CodegenError, CodegenOptions, Vectorisation};
+
+    /// The tables index places with `u16`: 65,535 places compile, one more is refused
+    /// (with 65,536, the tree tables' `u16::MAX`, "no parent", would be a place too).
+    #[test]
+    fn the_place_limit_is_u16_max() {
+        let options = CodegenOptions::default();
+        assert!(options.check(65_535).is_ok());
+        let err = options.check(65_536).unwrap_err();
+        assert!(
+            matches!(&err, CodegenError::BadOption(m) if m.contains("65,535") && m.contains("65536")),
+            "{err}"
+        );
+    }
 
     /// SIMD lane groups where the target has float SIMD the generated code uses
     /// (x86-64, AArch64); scalar code on microcontrollers and anything unknown.

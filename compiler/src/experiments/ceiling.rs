@@ -30,8 +30,19 @@ pub struct CeilingRow {
     pub one_hop: Option<f64>,
     /// The same from the two-hop context.
     pub two_hop: Option<f64>,
-    /// Per-map accuracies `(map, one hop, two hops)`.
-    pub per_map: Vec<(String, f64, f64)>,
+    /// Per-map accuracies (maps with a placeholder).
+    pub per_map: Vec<CeilingMap>,
+}
+
+/// The oracle's accuracy on one test map's placeholders.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CeilingMap {
+    /// Map name.
+    pub map: String,
+    /// Accuracy from the one-hop context.
+    pub one_hop: f64,
+    /// Accuracy from the two-hop context.
+    pub two_hop: f64,
 }
 
 /// Classes of the explored neighbours of `v` (except `skip`), as a set.
@@ -112,18 +123,22 @@ pub fn placeholder_ceiling(building: &str, train: &[TopoMap], test: &[TopoMap]) 
         }
         if n > 0 {
             placeholders += n;
-            per_map.push((m.name.clone(), h1 as f64 / n as f64, h2 as f64 / n as f64));
+            per_map.push(CeilingMap {
+                map: m.name.clone(),
+                one_hop: h1 as f64 / n as f64,
+                two_hop: h2 as f64 / n as f64,
+            });
         }
     }
     let k = per_map.len() as f64;
-    let mean = |f: fn(&(String, f64, f64)) -> f64| {
+    let mean = |f: fn(&CeilingMap) -> f64| {
         (!per_map.is_empty()).then(|| per_map.iter().map(f).sum::<f64>() / k)
     };
     CeilingRow {
         building: building.to_string(),
         placeholders,
-        one_hop: mean(|x| x.1),
-        two_hop: mean(|x| x.2),
+        one_hop: mean(|x| x.one_hop),
+        two_hop: mean(|x| x.two_hop),
         per_map,
     }
 }

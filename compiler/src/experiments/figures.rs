@@ -8,8 +8,9 @@ use super::evidence::NoiseLevel;
 use super::models::{FIRST_PAPER_MODEL, GRAPHSPN, MODELS, MRF2, NUM_MODELS, TREES};
 use super::novelty::{NoveltySet, novelty_points, roc_curve};
 use super::reproduce::{BuildingSetup, GraphOutcome};
-use super::results::{Experiment, Reproduction};
-use super::stats::{bootstrap_ci, ci_seed, levels_of, per_map};
+use super::results::{Experiment, Reproduction, set_score};
+use super::stats::levels_of;
+use super::summary::{Interval, SummaryCell, cell};
 use crate::map::TopoMap;
 use crate::render::{RenderOptions, escape_xml, render_svg};
 use crate::template::Template;
@@ -118,8 +119,9 @@ fn legend(s: &mut String, x: f64, y: f64, items: &[(&str, &str)]) {
     }
 }
 
-/// Accuracy (%) vs noise level for one building: one line per model, bars = map-level bootstrap 95% intervals.
-pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
+/// Accuracy (%) vs noise level for one building: one line per model, bars = map-level
+/// bootstrap 95% intervals (the cells of [`summarise`](super::summary::summarise)).
+pub fn accuracy_plot(rep: &Reproduction, cells: &[SummaryCell], building: &str) -> String {
     let levels = levels_of(rep);
     let (lo, hi) = (
         *levels.first().unwrap_or(&1) as f64,
@@ -158,24 +160,13 @@ pub fn accuracy_plot(rep: &Reproduction, building: &str) -> String {
         };
         let mut pts = Vec::new();
         for &l in &levels {
-            let v = per_map(
-                rep,
-                Some(building),
-                Experiment::Classification,
-                l,
-                |g| match model {
-                    Some(m) => g.accuracy[m],
-                    None => g.evidence_only,
-                },
-            );
-            let seed = ci_seed(
-                rep,
-                Some(building),
-                Experiment::Classification,
-                l,
-                model.map(|m| m as u64 + 1).unwrap_or(0),
-            );
-            if let Some((m, lo, hi)) = bootstrap_ci(&v, seed) {
+            let c = cell(cells, Some(building), Experiment::Classification, l);
+            if let Some(Interval {
+                mean: m,
+                low: lo,
+                high: hi,
+            }) = model.map_or(c.evidence_only, |m| c.accuracy[m])
+            {
                 let x = fr.px(l as f64) + (k as f64 - 3.0) * 3.0;
                 pts.push((x, fr.py(m)));
                 let _ = writeln!(
@@ -236,12 +227,7 @@ pub fn roc_plot(rep: &Reproduction, set: NoveltySet) -> String {
             .map(|(x, y)| (fr.px(x), fr.py(y)))
             .collect();
         s.push_str(&polyline(&curve, MODEL_COLOURS[k], false));
-        let a = rep
-            .auc
-            .iter()
-            .find(|(s, _)| *s == set)
-            .map(|(_, a)| a[k])
-            .unwrap_or(f64::NAN);
+        let a = set_score(&rep.auc, set, k);
         names.push(format!("{} (AUC {a:.3})", MODELS[k]));
     }
     let items: Vec<(&str, &str)> = names

@@ -19,5 +19,6 @@ pub mod results;
 pub mod sets;
 pub mod settings;
 pub mod stats;
+pub mod summary;
 pub mod validate;
 pub mod validation_report;

@@ -8,15 +8,18 @@ use std::path::Path;
 use super::config::ReproduceConfig;
 use super::evidence::{NoiseLevel, PAPER_TABLE1};
 use super::figures::{fig8_panel, pie_panel};
-use super::models::{MODELS, NUM_MODELS, Scores};
+use super::models::{MODELS, NUM_MODELS};
 use super::novelty::{LOCAL_REGIONS, NoveltySet};
 use super::reproduce::{BuildingSetup, ReproduceError, run_graph};
 use super::result_tables::{accuracy_table, bp_convergence, ceiling_section, paired_tables};
-use super::results::{Experiment, Reproduction};
+use super::results::{Experiment, Reproduction, SetScores, set_score};
 use super::sets::{Evaluation, SetRole};
+use super::summary::{SummaryCell, summarise};
 use super::validation_report::{
     counted, option_summary, search_summary, settings_table, validation_tables,
 };
+use crate::noise::MeanStd;
+use serde::Serialize;
 
 pub use super::figures::{accuracy_plot, compose_side_by_side, roc_plot};
 pub use super::stats::{
@@ -124,6 +127,15 @@ fn settings_section(rep: &Reproduction) -> String {
     s
 }
 
+/// results.json: the run's record with the report's summary figures beside it.
+#[derive(Serialize)]
+struct ResultsFile<'a> {
+    #[serde(flatten)]
+    run: &'a Reproduction,
+    /// Means, intervals and paired differences per building, experiment and level.
+    summary: &'a [SummaryCell],
+}
+
 /// Writes REPORT.md, results.json and the figures into `out`.
 /// `extra` is appended to the report (e.g. the CLI's notes).
 pub fn write_outputs(
@@ -142,17 +154,23 @@ pub fn write_outputs(
         let p = out.join(name);
         std::fs::write(&p, text).map_err(io(&p))
     };
-    write(
-        "results.json",
-        &serde_json::to_string_pretty(rep).unwrap_or_default(),
-    )?;
+    let cells = summarise(rep);
+    let results = ResultsFile {
+        run: rep,
+        summary: &cells,
+    };
+    // Serialising cannot fail on these types; were it to, the error names the file
+    // rather than leaving an empty one.
+    let json = serde_json::to_string_pretty(&results)
+        .map_err(|e| io(&out.join("results.json"))(e.into()))?;
+    write("results.json", &json)?;
     let mut figures = Vec::new();
     for b in &rep.buildings {
         let name = format!("accuracy_{}.svg", b.building);
-        write(&name, &accuracy_plot(rep, &b.building))?;
+        write(&name, &accuracy_plot(rep, &cells, &b.building))?;
         figures.push(name);
     }
-    for (set, _) in &rep.auc {
+    for SetScores { set, .. } in &rep.auc {
         let name = match set {
             NoveltySet::Paper => "roc.svg",
             NoveltySet::Local => "roc_local.svg",
@@ -191,13 +209,21 @@ pub fn write_outputs(
     }
     write(
         "REPORT.md",
-        &report_markdown(rep, cfg, &figures, (fig_level, pie_level, labels), extra),
+        &report_markdown(
+            rep,
+            &cells,
+            cfg,
+            &figures,
+            (fig_level, pie_level, labels),
+            extra,
+        ),
     )?;
     Ok(())
 }
 
 fn report_markdown(
     rep: &Reproduction,
+    cells: &[SummaryCell],
     cfg: &ReproduceConfig,
     figures: &[String],
     (fig_level, pie_level, labels): (NoiseLevel, NoiseLevel, &str),
@@ -297,8 +323,13 @@ fn report_markdown(
             ""
         }
     );
-    s.push_str(&accuracy_table(rep, Experiment::Classification, false));
-    s.push_str(&paired_tables(rep, Experiment::Classification));
+    s.push_str(&accuracy_table(
+        rep,
+        cells,
+        Experiment::Classification,
+        false,
+    ));
+    s.push_str(&paired_tables(rep, cells, Experiment::Classification));
     s.push('\n');
     s.push_str(&bp_convergence(rep));
     let _ = writeln!(
@@ -314,8 +345,8 @@ fn report_markdown(
             ""
         }
     );
-    s.push_str(&accuracy_table(rep, Experiment::Placeholders, paper));
-    s.push_str(&paired_tables(rep, Experiment::Placeholders));
+    s.push_str(&accuracy_table(rep, cells, Experiment::Placeholders, paper));
+    s.push_str(&paired_tables(rep, cells, Experiment::Placeholders));
     s.push_str(&ceiling_section(rep));
     if !rep.auc.is_empty() {
         let count = |set: NoveltySet, novel: bool| {
@@ -363,20 +394,14 @@ fn report_markdown(
             s,
             "| Model | pooled AUC, paper set | within-map, paper set | pooled AUC, local set | within-map, local set |\n|---|---|---|---|---|"
         );
-        let get = |v: &[(NoveltySet, Scores<f64>)], set: NoveltySet, k: usize| {
-            v.iter()
-                .find(|(s, _)| *s == set)
-                .map(|(_, a)| a[k])
-                .unwrap_or(f64::NAN)
-        };
         for (k, m) in MODELS.iter().enumerate() {
             let _ = writeln!(
                 s,
                 "| {m} | {:.3} | {:.3} | {:.3} | {:.3} |",
-                get(&rep.auc, NoveltySet::Paper, k),
-                get(&rep.within_map, NoveltySet::Paper, k),
-                get(&rep.auc, NoveltySet::Local, k),
-                get(&rep.within_map, NoveltySet::Local, k),
+                set_score(&rep.auc, NoveltySet::Paper, k),
+                set_score(&rep.within_map, NoveltySet::Paper, k),
+                set_score(&rep.auc, NoveltySet::Local, k),
+                set_score(&rep.within_map, NoveltySet::Local, k),
             );
         }
         let mut variants: Vec<String> = Vec::new();
@@ -441,7 +466,8 @@ fn report_markdown(
              | NL | D_groundtruth ours | paper | D_incorrect ours | paper |\n|---|---|---|---|---|",
             counted(cfg.rounds, "round")
         );
-        for &(l, gm, gs, im, is) in &rep.table1 {
+        for r in &rep.table1 {
+            let l = r.level;
             let p = PAPER_TABLE1[(l - 1) as usize];
             // The paper lists NL1's D_incorrect as 0.0 with no spread.
             let paper_incorrect = if l == 1 {
@@ -452,10 +478,10 @@ fn report_markdown(
             let _ = writeln!(
                 s,
                 "| {l} | {} | {:.3} ± {:.3} | {} | {paper_incorrect} |",
-                shown_mean_std(gm, gs),
+                shown_mean_std(r.d_groundtruth),
                 p.1.0,
                 p.1.1,
-                shown_mean_std(im, is),
+                shown_mean_std(r.d_incorrect),
             );
         }
     } else if !rep.table1.is_empty() {
@@ -471,12 +497,13 @@ fn report_markdown(
              | NL | D_groundtruth | D_incorrect |\n|---|---|---|",
             counted(cfg.rounds, "round")
         );
-        for &(l, gm, gs, im, is) in &rep.table1 {
+        for r in &rep.table1 {
             let _ = writeln!(
                 s,
-                "| {l} | {} | {} |",
-                shown_mean_std(gm, gs),
-                shown_mean_std(im, is)
+                "| {} | {} | {} |",
+                r.level,
+                shown_mean_std(r.d_groundtruth),
+                shown_mean_std(r.d_incorrect)
             );
         }
     }
@@ -522,7 +549,7 @@ fn report_markdown(
 
 /// `mean ± std` to three decimals, or `–` when no place was counted (the mean is
 /// not a number: e.g. no place got wrong evidence).
-fn shown_mean_std(mean: f64, std: f64) -> String {
+fn shown_mean_std(MeanStd { mean, std, .. }: MeanStd) -> String {
     if mean.is_finite() {
         format!("{mean:.3} ± {std:.3}")
     } else {
@@ -533,12 +560,14 @@ fn shown_mean_std(mean: f64, std: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::shown_mean_std;
+    use crate::noise::MeanStd;
 
     /// A statistic over no place (e.g. D_incorrect when no evidence was wrong) is shown
     /// as a dash, not as `NaN ± 0.000`.
     #[test]
     fn a_mean_over_no_place_is_a_dash() {
-        assert_eq!(shown_mean_std(0.25, 0.125), "0.250 ± 0.125");
-        assert_eq!(shown_mean_std(f64::NAN, 0.0), "–");
+        let of = |mean, std| MeanStd { mean, std, n: 2 };
+        assert_eq!(shown_mean_std(of(0.25, 0.125)), "0.250 ± 0.125");
+        assert_eq!(shown_mean_std(of(f64::NAN, 0.0)), "–");
     }
 }

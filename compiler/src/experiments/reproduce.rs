@@ -35,7 +35,7 @@ use super::protocol::{
     TAG_EVIDENCE, TAG_NOVELTY, TAG_PICK, TAG_TRAIN, accuracy, build_instance, building_key,
     pick_maps, train_trees, training_buildings, tree_instance,
 };
-use super::results::{BuildingInfo, Experiment, GraphResult, Reproduction};
+use super::results::{BuildingInfo, Experiment, GraphResult, Reproduction, SetScores, Table1Row};
 use super::settings::{GraphSpnSetting, ModelSettings, MrfSetting};
 use super::validate::{Validation, validate_for};
 use crate::instance::ComponentInstance;
@@ -453,8 +453,8 @@ pub fn run(
         for set in [NoveltySet::Paper, NoveltySet::Local] {
             let a = Scores::from_fn(|k| auc(&novelty_points(&novelty, set, k)));
             let w = Scores::from_fn(|k| within_map_auc(&novelty, set, k));
-            auc_v.push((set, a));
-            within.push((set, w));
+            auc_v.push(SetScores { set, scores: a });
+            within.push(SetScores { set, scores: w });
         }
     }
     // Table 1 statistics on the test maps' ground truth.
@@ -476,13 +476,11 @@ pub fn run(
                     source,
                 },
             )?;
-        table1.push((
-            level.get(),
-            st.d_groundtruth.mean,
-            st.d_groundtruth.std,
-            st.d_incorrect.mean,
-            st.d_incorrect.std,
-        ));
+        table1.push(Table1Row {
+            level: level.get(),
+            d_groundtruth: st.d_groundtruth,
+            d_incorrect: st.d_incorrect,
+        });
     }
     let ceiling = setups
         .iter()

@@ -4,9 +4,11 @@
 
 use std::fmt::Write as _;
 
+use super::ceiling::CeilingMap;
 use super::models::{GRAPHSPN, MODELS, MRF_MODELS, OUR_MODELS, TREES};
 use super::results::{Experiment, Reproduction};
-use super::stats::{best_baseline, bootstrap_ci, ci_seed, fmt_ci, levels_of, per_map};
+use super::stats::{best_baseline, levels_of, per_map};
+use super::summary::{SummaryCell, building_rows, cell, shown};
 
 /// The paper's Table 2 (placeholder accuracy, %): `(model, level, [Freiburg, Saarbrucken, Stockholm])`.
 pub const PAPER_TABLE2: [(&str, u8, [f64; 3]); 6] = [
@@ -28,19 +30,12 @@ fn paper_table2(model: &str, level: u8, building: &str) -> Option<f64> {
         .map(|(_, _, v)| v[bi])
 }
 
-fn building_rows(rep: &Reproduction) -> Vec<Option<&str>> {
-    let mut buildings: Vec<Option<&str>> = rep
-        .buildings
-        .iter()
-        .map(|b| Some(b.building.as_str()))
-        .collect();
-    if rep.buildings.len() > 1 {
-        buildings.push(None);
-    }
-    buildings
-}
-
-pub(crate) fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool) -> String {
+pub(crate) fn accuracy_table(
+    rep: &Reproduction,
+    cells: &[SummaryCell],
+    e: Experiment,
+    with_paper: bool,
+) -> String {
     let levels = levels_of(rep);
     let mut s = String::new();
     let mut head = "| Test building | Model |".to_string();
@@ -64,12 +59,12 @@ pub(crate) fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool
         for (name, k) in rows {
             let _ = write!(s, "| {} | {name} |", b.unwrap_or("**all**"));
             for &l in &levels {
-                let v = per_map(rep, b, e, l, |g| match k {
-                    Some(k) => g.accuracy[k],
-                    None => g.evidence_only,
-                });
-                let seed = ci_seed(rep, b, e, l, k.map(|k| k as u64 + 1).unwrap_or(0));
-                let _ = write!(s, " {} |", fmt_ci(bootstrap_ci(&v, seed)));
+                let c = cell(cells, b, e, l);
+                let _ = write!(
+                    s,
+                    " {} |",
+                    shown(k.map_or(c.evidence_only, |k| c.accuracy[k]))
+                );
                 if with_paper && (l == 2 || l == 5) {
                     let paper_name = match name {
                         "MRF-2 paper" => "MRF-2",
@@ -91,9 +86,9 @@ pub(crate) fn accuracy_table(rep: &Reproduction, e: Experiment, with_paper: bool
     s
 }
 
-/// Paired differences model `ours` − the better tuned MRF (per map, then bootstrap
-/// over maps).
-fn paired_table(rep: &Reproduction, e: Experiment, ours: usize) -> String {
+/// Paired differences model `ours` (its index in [`OUR_MODELS`]) − the better tuned
+/// MRF (per map, then bootstrap over maps).
+fn paired_table(rep: &Reproduction, cells: &[SummaryCell], e: Experiment, ours: usize) -> String {
     let levels = levels_of(rep);
     let mut s = String::new();
     let mut head = "| Test building |".to_string();
@@ -106,10 +101,8 @@ fn paired_table(rep: &Reproduction, e: Experiment, ours: usize) -> String {
     for b in building_rows(rep) {
         let _ = write!(s, "| {} |", b.unwrap_or("**all**"));
         for &l in &levels {
-            let k = best_baseline(rep, b, e, l);
-            let v = per_map(rep, b, e, l, |g| g.accuracy[ours] - g.accuracy[k]);
-            let ci = bootstrap_ci(&v, ci_seed(rep, b, e, l, 50 + ours as u64));
-            let _ = write!(s, " {} vs {} |", fmt_ci(ci), MODELS[k]);
+            let p = &cell(cells, b, e, l).paired[ours];
+            let _ = write!(s, " {} vs {} |", shown(p.difference), p.baseline);
         }
         s.push('\n');
     }
@@ -117,16 +110,16 @@ fn paired_table(rep: &Reproduction, e: Experiment, ours: usize) -> String {
 }
 
 /// The paired-difference table of each of our models ([`OUR_MODELS`]).
-pub(crate) fn paired_tables(rep: &Reproduction, e: Experiment) -> String {
+pub(crate) fn paired_tables(rep: &Reproduction, cells: &[SummaryCell], e: Experiment) -> String {
     let mut s = String::new();
-    for k in OUR_MODELS {
+    for (ours, k) in OUR_MODELS.into_iter().enumerate() {
         let _ = writeln!(
             s,
             "\nPaired difference {m} − the better tuned MRF of the cell (percentage points, \
              per map then bootstrap over maps); an interval above 0 means {m} wins:\n",
             m = MODELS[k]
         );
-        s.push_str(&paired_table(rep, e, k));
+        s.push_str(&paired_table(rep, cells, e, ours));
     }
     s
 }
@@ -195,16 +188,14 @@ pub(crate) fn ceiling_section(rep: &Reproduction) -> String {
         );
     }
     if rep.ceiling.len() > 1 {
-        let maps: Vec<&(String, f64, f64)> = rep.ceiling.iter().flat_map(|c| &c.per_map).collect();
-        let hop = |f: fn(&(String, f64, f64)) -> f64| {
-            mean(&maps.iter().map(|m| f(m)).collect::<Vec<_>>())
-        };
+        let maps: Vec<&CeilingMap> = rep.ceiling.iter().flat_map(|c| &c.per_map).collect();
+        let hop = |f: fn(&CeilingMap) -> f64| mean(&maps.iter().map(|m| f(m)).collect::<Vec<_>>());
         let _ = writeln!(
             s,
             "| **all** | {} | {} | {} | {} |",
             rep.ceiling.iter().map(|c| c.placeholders).sum::<usize>(),
-            pct(hop(|m| m.1)),
-            pct(hop(|m| m.2)),
+            pct(hop(|m| m.one_hop)),
+            pct(hop(|m| m.two_hop)),
             cells(None),
         );
     }

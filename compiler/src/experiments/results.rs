@@ -11,6 +11,7 @@ use super::models::Scores;
 use super::novelty::{NoveltyResult, NoveltySet};
 use super::settings::ModelSettings;
 use super::validate::Validation;
+use crate::noise::MeanStd;
 
 /// The two inference experiments.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
@@ -43,6 +44,36 @@ pub struct GraphResult {
     pub accuracy: Scores<f64>,
     /// Whether loopy BP converged, by MRF name ([`MRF_MODELS`](super::models::MRF_MODELS)).
     pub bp_converged: BTreeMap<String, bool>,
+}
+
+/// One novelty set's figure per model (the area under the ROC curve, or the
+/// within-map ranking).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SetScores {
+    /// Which novelty labellings.
+    pub set: NoveltySet,
+    /// The figure per model, by model name.
+    pub scores: Scores<f64>,
+}
+
+/// The figure of `set` for model `k`, NaN when the set was not scored.
+pub(crate) fn set_score(v: &[SetScores], set: NoveltySet, k: usize) -> f64 {
+    v.iter()
+        .find(|s| s.set == set)
+        .map_or(f64::NAN, |s| s.scores[k])
+}
+
+/// Table 1 statistics of one noise level (paper Table 1), over the places of the
+/// evidence simulated on the test maps' ground truth.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Table1Row {
+    /// Noise level (1..6).
+    pub level: u8,
+    /// Over places with correct evidence: the true class's value minus the highest
+    /// other one.
+    pub d_groundtruth: MeanStd,
+    /// Over places with wrong evidence: the highest value minus the true class's.
+    pub d_incorrect: MeanStd,
 }
 
 /// Per-building facts.
@@ -81,18 +112,17 @@ pub struct Reproduction {
     /// Per novelty set: the area under the ROC curve per model
     /// ([`MODELS`](super::models::MODELS) order), pooled over maps and buildings (empty
     /// when novelty was not run).
-    pub auc: Vec<(NoveltySet, Scores<f64>)>,
+    pub auc: Vec<SetScores>,
     /// Per novelty set, the within-map ranking: per model, the share of (novel,
     /// non-novel) labelling pairs of the same map that the model ranks correctly
     /// (ties ½), averaged over maps.
-    pub within_map: Vec<(NoveltySet, Scores<f64>)>,
+    pub within_map: Vec<SetScores>,
     /// Per test building: how well an oracle knowing every explored place's true class
     /// labels the placeholders from their neighbourhood ([`super::ceiling`]).
     #[serde(default)]
     pub ceiling: Vec<CeilingRow>,
-    /// Table 1 statistics of the evidence simulated on the test maps:
-    /// `(level, D_groundtruth mean, std, D_incorrect mean, std)`.
-    pub table1: Vec<(u8, f64, f64, f64, f64)>,
+    /// Table 1 statistics of the evidence simulated on the test maps, per level.
+    pub table1: Vec<Table1Row>,
     /// Wall-clock seconds of the whole run (filled by the caller).
     pub seconds: f64,
     /// For an evaluation of a user's map sets (`graphspn evaluate`, filled by the

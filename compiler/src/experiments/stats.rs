@@ -122,11 +122,3 @@ pub(crate) fn ci_seed(
         .unwrap_or(0);
     derive_seed(rep.seed, &[99, b, e as u64, level as u64, k])
 }
-
-/// `mean [low, high]` in %, or `–` when there is no value.
-pub(crate) fn fmt_ci(ci: Option<(f64, f64, f64)>) -> String {
-    match ci {
-        Some((m, lo, hi)) => format!("{:.1} [{:.1}, {:.1}]", 100.0 * m, 100.0 * lo, 100.0 * hi),
-        None => "–".into(),
-    }
-}
