@@ -61,6 +61,16 @@ fn class_sets_that_differ_are_reported_with_both_files() {
         msg.contains("model.json") && msg.contains("swapped.json"),
         "{msg}"
     );
+    // A long class list is shortened as every other class error shortens it.
+    let mut names = map.classes.names().to_vec();
+    names.extend((0..400).map(|i| format!("extra{i}")));
+    map.classes = ClassSet::new(names).unwrap();
+    map.save(&path).unwrap();
+    let msg = Builder::new(demo().join("model.json"), &path)
+        .generate()
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("(410 classes)") && !msg.contains("extra399"), "{msg}");
 }
 
 #[test]

@@ -54,8 +54,9 @@ pub enum BuildError {
     },
     /// The model and the map name different classes (or the same in another order).
     #[error(
-        "model file {} has classes [{}] but map {} has classes [{}]",
-        model.display(), model_classes.join(", "), map.display(), map_classes.join(", ")
+        "model file {} has classes {} but map {} has classes {}",
+        model.display(), crate::map::shown_class_names(model_classes), map.display(),
+        crate::map::shown_class_names(map_classes)
     )]
     ClassesDiffer {
         /// The model file.
