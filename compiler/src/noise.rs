@@ -457,7 +457,7 @@ pub fn d_incorrect(row: &[f64], truth: usize) -> f64 {
 }
 
 /// A number, or NaN where JSON holds `null` (serde_json writes NaN so).
-fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+pub(crate) fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
     use serde::Deserialize;
     Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }

@@ -70,7 +70,10 @@ fn class_sets_that_differ_are_reported_with_both_files() {
         .generate()
         .unwrap_err()
         .to_string();
-    assert!(msg.contains("(410 classes)") && !msg.contains("extra399"), "{msg}");
+    assert!(
+        msg.contains("(410 classes)") && !msg.contains("extra399"),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -91,6 +91,12 @@ fn quick_reproduction_on_cold() {
             d_incorrect: stat(f64::NAN, 0.0),
         },
     );
+    // A graph with no place scored (a map without placeholders) has NaN accuracies,
+    // written as null.
+    let last = plain.graphs.len() - 1;
+    plain.graphs[last].scored = 0;
+    plain.graphs[last].evidence_only = f64::NAN;
+    plain.graphs[last].accuracy.0[1] = f64::NAN;
     plain.auc.clear();
     plain.within_map.clear();
     plain.novelty.clear();
@@ -110,6 +116,8 @@ fn quick_reproduction_on_cold() {
     let json2 = std::fs::read_to_string(no_novelty.path().join("results.json")).unwrap();
     let back: Reproduction = serde_json::from_str(&json2).expect("results.json parses");
     assert!(back.table1[0].d_incorrect.mean.is_nan());
+    let g = &back.graphs[last];
+    assert!(g.evidence_only.is_nan() && g.accuracy[1].is_nan() && g.accuracy[0].is_finite());
     assert_eq!(back.table1[1..], plain.table1[1..]);
     assert!(report.contains("1 round per map") && !report.contains("1 rounds"));
     // The quick run's validation is a reduced search, and the report says so.

@@ -84,6 +84,13 @@ impl<T> IndexMut<usize> for Scores<T> {
     }
 }
 
+/// Reads a `Scores<f64>` whose NaN entries (a figure over nothing) JSON holds as
+/// `null` (serde_json writes NaN so).
+pub(crate) fn scores_nan_if_null<'de, D: Deserializer<'de>>(d: D) -> Result<Scores<f64>, D::Error> {
+    let s = Scores::<Option<f64>>::deserialize(d)?;
+    Ok(Scores(s.0.map(|v| v.unwrap_or(f64::NAN))))
+}
+
 impl<T: Serialize> Serialize for Scores<T> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let mut m = s.serialize_map(Some(NUM_MODELS))?;

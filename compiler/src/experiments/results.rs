@@ -38,9 +38,13 @@ pub struct GraphResult {
     pub experiment: Experiment,
     /// Places scored (all places, or the placeholders).
     pub scored: usize,
-    /// Accuracy of the evidence's argmax alone (ties split evenly).
+    /// Accuracy of the evidence's argmax alone (ties split evenly); NaN (`null` in
+    /// JSON) when no place was scored.
+    #[serde(deserialize_with = "crate::noise::nan_if_null")]
     pub evidence_only: f64,
-    /// Accuracy per model, by model name (ties split evenly).
+    /// Accuracy per model, by model name (ties split evenly); NaN (`null`) when no
+    /// place was scored.
+    #[serde(deserialize_with = "super::models::scores_nan_if_null")]
     pub accuracy: Scores<f64>,
     /// Whether loopy BP converged, by MRF name ([`MRF_MODELS`](super::models::MRF_MODELS)).
     pub bp_converged: BTreeMap<String, bool>,
