@@ -515,6 +515,46 @@ fn a_dangling_symlink_is_replaced_only_with_force() {
     assert_eq!(leftovers(dir.path()), Vec::<String>::new());
 }
 
+/// A device, pipe or socket at an output's path (or a link to one) is never replaced,
+/// even with --force: `--out /dev/null` would otherwise turn the system's `/dev/null`
+/// into an SVG file when run as root. Tried on a named pipe and a link to
+/// `/dev/null` in a scratch folder, so that a regression damages nothing.
+#[cfg(unix)]
+#[test]
+fn devices_and_pipes_are_never_replaced() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().unwrap();
+    let pipe = dir.path().join("pipe.svg");
+    let made = Command::new("mkfifo").arg(&pipe).status();
+    let null_link = dir.path().join("null.svg");
+    std::os::unix::fs::symlink("/dev/null", &null_link).unwrap();
+    let mut outs = vec![(null_link.clone(), "a character device")];
+    if made.is_ok_and(|s| s.success()) {
+        outs.push((pipe.clone(), "a named pipe"));
+    }
+    for (out, kind) in outs {
+        for force in [false, true] {
+            let mut c = bin();
+            c.args(["render", "--synthetic", "10", "--out"]).arg(&out);
+            if force {
+                c.arg("--force");
+            }
+            let o = run(&mut c);
+            assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+            assert!(
+                stderr(&o).contains(&format!("is {kind}, not a file")),
+                "{}",
+                stderr(&o)
+            );
+        }
+    }
+    assert!(std::fs::read_link(&null_link).is_ok(), "the link is kept");
+    if pipe.exists() {
+        let t = std::fs::symlink_metadata(&pipe).unwrap().file_type();
+        assert!(t.is_fifo(), "the pipe is kept");
+    }
+}
+
 #[test]
 fn unwritable_locations_and_foreign_folders_are_refused_before_computing() {
     let dir = tempfile::tempdir().unwrap();

@@ -143,6 +143,31 @@ fn sibling(dest: &Path, kind: &str) -> PathBuf {
     parent_of(dest).join(format!(".{name}.graphspn-{kind}"))
 }
 
+/// What `path` is when it exists (following links) and is neither a file nor a
+/// folder: `"a character device"`, `"a named pipe"`, …; `None` otherwise.
+fn special_file(path: &Path) -> Option<&'static str> {
+    let m = std::fs::metadata(path).ok()?;
+    if m.is_file() || m.is_dir() {
+        return None;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = m.file_type();
+        for (is, kind) in [
+            (t.is_char_device(), "a character device"),
+            (t.is_block_device(), "a block device"),
+            (t.is_fifo(), "a named pipe"),
+            (t.is_socket(), "a socket"),
+        ] {
+            if is {
+                return Some(kind);
+            }
+        }
+    }
+    Some("a special file")
+}
+
 /// What a symbolic link at `path` points to, for messages.
 fn link_target(path: &Path) -> String {
     std::fs::read_link(path).map_or_else(|_| "?".into(), |t| t.display().to_string())
@@ -361,6 +386,14 @@ impl Outputs {
         }
         if path.is_dir() {
             bail!("{flag} {shown}: is a folder (give a file name)");
+        }
+        // Only a file (or a link: dangling, or to a file) is ever replaced; a device,
+        // pipe or socket — `/dev/null`, or a link to one such as `/dev/stdout` — is
+        // refused even with --force (it would be replaced by a regular file).
+        if let Some(kind) = special_file(path) {
+            bail!(
+                "{flag} {shown}: is {kind}, not a file; give a file name (graphspn never replaces {kind})"
+            );
         }
         let parent = parent_of(path);
         if !parent.is_dir() {
