@@ -91,7 +91,9 @@ pub struct InferArgs {
     /// GraphSPN, the model's own for a tree mixture.
     #[arg(long, value_parser = parse_mixing)]
     mixing: Option<Mixing>,
-    /// Also compute the max-product (MPE) labelling.
+    /// Also compute the max-product (MPE) labelling: the labels of the most probable
+    /// joint choice of labels and the model's hidden choices, which need not be the
+    /// most probable labelling (docs/FORMATS.md).
     #[arg(long)]
     mpe: bool,
     /// Draw the map with one pie chart of the marginals per place.
