@@ -55,19 +55,35 @@ pub fn tree_instance_json(map: &TopoMap, trees: &SpanningTrees, spn: &Spn) -> St
     })
 }
 
+/// `text` inside a Graphviz quoted string: backslashes, quotes and line breaks
+/// escaped, so that a name ending in `\` or holding `"` cannot end the string.
+fn dot_text(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '\\' => out.push_str("\\\\"),
+            '"' => out.push_str("\\\""),
+            '\n' => out.push_str("\\n"),
+            '\r' => {}
+            c => out.push(c),
+        }
+    }
+    out
+}
+
 /// An SPN over the places of `map` as a Graphviz digraph: sums `+`, products `×`,
 /// leaves `place=class`; sum edges labelled with their weights. Edges point from
 /// parent to child; `label` is the graph's title.
 pub fn spn_dot(map: &TopoMap, spn: &Spn, label: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "digraph instance {{");
-    let _ = writeln!(s, "  label=\"{}\";", label.replace('"', "\\\""));
+    let _ = writeln!(s, "  label=\"{}\";", dot_text(label));
     let _ = writeln!(s, "  node [fontname=\"Helvetica\"];");
     for (i, node) in spn.nodes.iter().enumerate() {
         match node {
             Node::Leaf { var, class } => {
                 let place = map.place(*var as usize).id;
-                let class = map.classes.name(*class as u16);
+                let class = dot_text(map.classes.name(*class as u16));
                 let _ = writeln!(s, "  n{i} [shape=box,label=\"{place}={class}\"];");
             }
             Node::Sum { children, weights } => {
@@ -130,5 +146,19 @@ impl Instance {
             &self.spn,
             &format!("instance GraphSPN of {}", map.name),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::dot_text;
+
+    /// A name ending in a backslash or holding a quote stays inside its string.
+    #[test]
+    fn dot_strings_escape_backslashes_quotes_and_line_breaks() {
+        assert_eq!(dot_text(r"room\"), r"room\\");
+        assert_eq!(dot_text(r#"a"b"#), r#"a\"b"#);
+        assert_eq!(dot_text("two\nlines\r"), r"two\nlines");
+        assert_eq!(dot_text("Büro 1"), "Büro 1");
     }
 }
