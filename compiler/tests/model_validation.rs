@@ -145,6 +145,20 @@ fn weights_in_a_model_file_are_relative() {
     let mut relative = good.spns[3].clone();
     singleton_weights(&mut relative)[5] *= 3.0;
     assert_eq!(normalise_weights(&mut relative), 1);
+    // Weights whose sum overflows (or is subnormal) keep their ratios.
+    for scale in [5e307, 1e-310] {
+        let mut huge = good.spns[3].clone();
+        let w = singleton_weights(&mut huge);
+        w.iter_mut().for_each(|w| *w = 0.0);
+        (w[0], w[1]) = (scale, 3.0 * scale);
+        assert_eq!(normalise_weights(&mut huge), 1);
+        let w = singleton_weights(&mut huge);
+        assert!(
+            (w[0] - 0.25).abs() < 1e-12 && (w[1] - 0.75).abs() < 1e-12,
+            "{w:?}"
+        );
+        huge.validate().unwrap();
+    }
     // A sum whose weights are all 0 (which the file check refuses) has nothing to
     // rescale by: it is left as it is, not divided by 0.
     let mut zero = good.spns[3].clone();

@@ -158,12 +158,21 @@ pub fn check_template_spn(
 /// [`WEIGHT_SUM_TOLERANCE`] so that they do; sums already within it are left bit for
 /// bit. Weights are relative: `[2, 6]` means `[0.25, 0.75]`. Returns the number of
 /// sums rescaled. Call on a checked SPN ([`check_template_spn`]): every sum then has
-/// finite, non-negative weights that are not all zero.
+/// finite, non-negative weights that are not all zero. Weights whose sum is not a
+/// normal number (it overflows, as `[1e308, 1e308]` does, or is subnormal) are first
+/// divided by their largest, so any such weights keep their ratios.
 pub fn normalise_weights(spn: &mut Spn) -> usize {
     let mut rescaled = 0;
     for node in &mut spn.nodes {
         if let Node::Sum { weights, .. } = node {
-            let total: f64 = weights.iter().sum();
+            let mut total: f64 = weights.iter().sum();
+            let largest = weights.iter().copied().fold(0.0, f64::max);
+            if !total.is_normal() && largest > 0.0 {
+                for w in weights.iter_mut() {
+                    *w /= largest;
+                }
+                total = weights.iter().sum();
+            }
             if total > 0.0 && (total - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
                 for w in weights.iter_mut() {
                     *w /= total;
