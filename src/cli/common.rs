@@ -12,7 +12,7 @@ use graphspn_compiler::map::cold::Dropped;
 use graphspn_compiler::map::{TopoMap, cold};
 
 use super::budget::{MEMORY_LIMIT, gb};
-use super::output::Outputs;
+use super::output::{Outputs, check_input_file};
 
 /// The COLD data folder: `--data`, else `$GRAPHSPN_DATA`, else the copy shipped in the
 /// repository ([`cold::data_dir`]).
@@ -141,17 +141,13 @@ pub fn id_list(ids: &[u32]) -> String {
 
 /// Reads a model (validated by [`Model::load`]; errors name the file, template and node).
 pub fn load_model(path: &Path) -> Result<Model> {
-    if !path.is_file() {
-        bail!("--model {}: no such file", path.display());
-    }
+    check_input_file("--model", path)?;
     Ok(Model::load(path)?)
 }
 
 /// Reads a model file of either family (`--model`).
 pub fn load_any_model(path: &Path) -> Result<AnyModel> {
-    if !path.is_file() {
-        bail!("--model {}: no such file", path.display());
-    }
+    check_input_file("--model", path)?;
     Ok(AnyModel::load(path)?)
 }
 

@@ -120,10 +120,10 @@ fn holds(path: &Path, content: &[u8]) -> bool {
 pub fn run(args: CompileArgs) -> Result<()> {
     check_module_name(&args.module).context("--module")?;
     let mut outputs = Outputs::new(args.force);
-    outputs.input("--model", &args.model);
+    outputs.input_file("--model", &args.model)?;
     let map_path = declare_map(&args.map, data_dir(args.data.clone()), &mut outputs)?;
     if let Some(d) = &args.decompositions {
-        outputs.input("--decompositions", d);
+        outputs.input_file("--decompositions", d)?;
     }
     // The @generated rule: a file graphspn generated is replaced without --force.
     let generated =

@@ -54,7 +54,7 @@ pub struct DecomposeArgs {
 pub fn run(args: DecomposeArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.force);
     check_decomposition_count("--count", args.count)?;
-    outputs.input("--model", &args.model);
+    outputs.input_file("--model", &args.model)?;
     let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     outputs.file("--out", &args.out)?;
     let model = load_model(&args.model)?;

@@ -208,7 +208,7 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
         );
     }
     if let Some(p) = &args.settings {
-        outputs.input("--settings", p);
+        outputs.input_file("--settings", p)?;
     }
     outputs.folder("--out", &args.run.out)?;
     let mut cfg = args.run.config(false);

@@ -79,10 +79,10 @@ pub fn run(args: InstanceArgs) -> Result<()> {
     if let Some(d) = args.decompositions {
         check_decomposition_count("--decompositions", d)?;
     }
-    outputs.input("--model", &args.model);
+    outputs.input_file("--model", &args.model)?;
     let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     if let Some(f) = &args.decompositions_file {
-        outputs.input("--decompositions-file", f);
+        outputs.input_file("--decompositions-file", f)?;
     }
     if let Some(p) = &args.out {
         outputs.file("--out", p)?;

@@ -123,7 +123,7 @@ pub fn render(args: RenderArgs) -> Result<()> {
         None => None,
     };
     if let Some(p) = &args.model {
-        outputs.input("--model", p);
+        outputs.input_file("--model", p)?;
     }
     outputs.file("--out", &args.out)?;
     let model = match &args.model {

@@ -143,6 +143,18 @@ fn sibling(dest: &Path, kind: &str) -> PathBuf {
     parent_of(dest).join(format!(".{name}.graphspn-{kind}"))
 }
 
+/// The one check of every input file's path (`--model`, `--evidence`, …): a folder
+/// or a missing path is refused with the flag and the path.
+pub fn check_input_file(flag: &str, path: &Path) -> Result<()> {
+    if path.is_dir() {
+        bail!("{flag} {}: is a folder, not a file", path.display());
+    }
+    if !path.exists() {
+        bail!("{flag} {}: no such file", path.display());
+    }
+    Ok(())
+}
+
 /// What `path` is when it exists (following links) and is neither a file nor a
 /// folder: `"a character device"`, `"a named pipe"`, …; `None` otherwise.
 fn special_file(path: &Path) -> Option<&'static str> {
@@ -325,6 +337,14 @@ impl Outputs {
             planned: Vec::new(),
             locks: Vec::new(),
         }
+    }
+
+    /// Declares an input file named by `flag`: it must exist and be a file
+    /// ([`check_input_file`]).
+    pub fn input_file(&mut self, flag: &str, path: &Path) -> Result<()> {
+        check_input_file(flag, path)?;
+        self.input(flag, path);
+        Ok(())
     }
 
     /// Declares an input (a file or folder that exists; others are ignored here:

@@ -361,7 +361,7 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.run.force);
     outputs.input("--data", &data);
     if let Some(p) = &args.settings {
-        outputs.input("--settings", p);
+        outputs.input_file("--settings", p)?;
     }
     outputs.folder("--out", &args.run.out)?;
     let mut cfg = args.run.config(args.quick);

@@ -254,6 +254,44 @@ pub fn cold_evidence_decompositions(root: &Path, cases: &mut Vec<Case>) -> Value
         1,
         &["--evidence", "nope.json"],
     ));
+    // A folder where a file is expected: one message for every file input.
+    std::fs::create_dir_all(root.join("a_folder")).unwrap();
+    for (flag, args) in [
+        (
+            "--model",
+            ["--model", "{root}/a_folder", "--map", "{root}/floor.json"],
+        ),
+        (
+            "--evidence",
+            [
+                "--model",
+                "{root}/model.json",
+                "--evidence",
+                "{root}/a_folder",
+            ],
+        ),
+        (
+            "--decompositions-file",
+            [
+                "--model",
+                "{root}/model.json",
+                "--decompositions-file",
+                "{root}/a_folder",
+            ],
+        ),
+    ] {
+        let mut argv = vec!["infer"];
+        argv.extend(args);
+        if !argv.contains(&"--map") {
+            argv.extend(["--map", "{root}/floor.json"]);
+        }
+        cases.push(case(
+            &format!("infer {flag} is a folder"),
+            &argv,
+            1,
+            &[flag, "a_folder: is a folder, not a file"],
+        ));
+    }
 
     // Malformed decompositions files for `compile --decompositions` and `infer --decompositions-file`.
     let decs = demo_decompositions(root);
