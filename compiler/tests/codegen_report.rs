@@ -183,7 +183,8 @@ fn a_stack_budget_equal_to_the_need_is_enough() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains(&format!("{worst} bytes")) && err.contains("max_stack_bytes"),
+        err.contains(&format!("{worst} bytes"))
+            && err.contains("`max_stack_bytes`, `--max-stack-bytes` of `graphspn compile`"),
         "{err}"
     );
 }

@@ -182,6 +182,14 @@ fn model_mutations() -> Vec<Mutation> {
             &[":2:15", "ClassSet"],
         ),
         ("spns_not_list", |m| m["spns"] = json!(3), &["invalid type"]),
+        (
+            "no_templates",
+            |m| {
+                m["templates"] = json!([]);
+                m["spns"] = json!([]);
+            },
+            &["the model has no templates"],
+        ),
         // Unknown fields at every level are refused, not ignored (a misspelt field
         // would otherwise be a silent default).
         (

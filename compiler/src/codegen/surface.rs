@@ -87,7 +87,7 @@ impl CodeReport {
         let worst = self.worst_stack();
         if worst > options.stack_budget() {
             return Err(CodegenError::BadOption(format!(
-                "the generated code needs up to {worst} bytes of stack per call, more than the budget of {} bytes (max_stack_bytes)",
+                "the generated code needs up to {worst} bytes of stack per call, more than the budget of {} bytes (raise it with `max_stack_bytes`, `--max-stack-bytes` of `graphspn compile`)",
                 options.stack_budget()
             )));
         }

@@ -203,6 +203,13 @@ impl Model {
         if self.classes.is_empty() {
             return Err(invalid("the model has no classes".into()));
         }
+        if self.templates.is_empty() {
+            return Err(invalid(
+                "the model has no templates (a GraphSPN covers a map with template-shaped \
+                 pieces; it needs at least the one-place template)"
+                    .into(),
+            ));
+        }
         if self.spns.len() != self.templates.len() {
             return Err(invalid(format!(
                 "{} templates but {} SPNs",
