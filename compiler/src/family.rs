@@ -56,12 +56,8 @@ struct FamilyProbe {
 /// Errors name `source_name` and say what is wrong; the rest of the file is not
 /// looked at.
 pub fn family_of(text: &str, source_name: &str) -> Result<ModelFamily, ModelFileError> {
-    let probe: FamilyProbe = serde_json::from_str(text).map_err(|e| ModelFileError::Parse {
-        source_name: source_name.to_string(),
-        line: e.line(),
-        column: e.column(),
-        message: e.to_string(),
-    })?;
+    let probe: FamilyProbe =
+        serde_json::from_str(text).map_err(|e| crate::learn::file::parse_error(source_name, e))?;
     match probe.family {
         None => Ok(ModelFamily::Graphspn),
         Some(v) => v

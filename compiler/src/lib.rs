@@ -44,6 +44,7 @@ pub mod instance;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod interpreter;
+pub mod json_error;
 pub mod learn;
 pub mod map;
 /// *(host)*

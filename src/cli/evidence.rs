@@ -15,6 +15,7 @@ use std::path::Path;
 use std::rc::Rc;
 
 use anyhow::{Result, anyhow, bail};
+use graphspn_compiler::json_error::json_message;
 use graphspn_compiler::map::TopoMap;
 use graphspn_compiler::map::cold::Dropped;
 use serde::de::{DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor};
@@ -277,9 +278,10 @@ pub fn read_evidence(file: &Path, map: &TopoMap, dropped: &Dropped) -> Result<Ve
         Ok(()) => Ok(target.rows),
         Err(e) if e.is_io() => bail!("{at}: {e}"),
         Err(e) => bail!(
-            "{at}:{}:{}: not a valid evidence file: {e}",
+            "{at}:{}:{}: not a valid evidence file: {}",
             e.line(),
-            e.column()
+            e.column(),
+            json_message(&e)
         ),
     }
 }

@@ -17,6 +17,7 @@ use graphspn_compiler::experiments::validate::{
     DecompositionChoice, ModelSettings, fold_buildings, validate_for,
 };
 use graphspn_compiler::experiments::validation_report::validation_markdown;
+use graphspn_compiler::json_error::json_message;
 use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
 use std::collections::BTreeMap;
@@ -278,9 +279,10 @@ pub fn read_settings(path: &std::path::Path) -> Result<SavedSettings> {
     let text = std::fs::read_to_string(path).with_context(|| at.clone())?;
     let file: SettingsFile = serde_json::from_str(&text).map_err(|e| {
         anyhow::anyhow!(
-            "{at}:{}:{}: not a settings file (graphspn validate writes validation.json): {e}",
+            "{at}:{}:{}: not a settings file (graphspn validate writes validation.json): {}",
             e.line(),
-            e.column()
+            e.column(),
+            json_message(&e)
         )
     })?;
     for (building, s) in &file.settings {

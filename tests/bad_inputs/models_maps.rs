@@ -370,7 +370,15 @@ pub fn models_and_maps(root: &Path, cases: &mut Vec<Case>) {
         (
             "edge_triple",
             |m| m["edges"][0] = json!([0, 1, 2]),
-            &["line "],
+            &[
+                "line ",
+                "invalid length 3, expected an edge: a pair of place ids [a, b]",
+            ],
+        ),
+        (
+            "edge_single",
+            |m| m["edges"][0] = json!([0]),
+            &["invalid length 1, expected an edge"],
         ),
         (
             "places_missing",

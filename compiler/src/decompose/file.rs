@@ -211,7 +211,7 @@ fn syntax(e: serde_json::Error) -> DecompositionFileError {
     DecompositionFileError::Syntax {
         line: e.line(),
         column: e.column(),
-        message: e.to_string(),
+        message: crate::json_error::json_message(&e),
     }
 }
 

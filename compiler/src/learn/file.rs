@@ -78,12 +78,13 @@ struct Probe {
     format: Option<serde_json::Value>,
 }
 
-fn parse_error(source_name: &str, e: serde_json::Error) -> ModelFileError {
+/// A model file that is not valid JSON of the expected shape, at its position.
+pub(crate) fn parse_error(source_name: &str, e: serde_json::Error) -> ModelFileError {
     ModelFileError::Parse {
         source_name: source_name.to_string(),
         line: e.line(),
         column: e.column(),
-        message: e.to_string(),
+        message: crate::json_error::json_message(&e),
     }
 }
 

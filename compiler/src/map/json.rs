@@ -141,7 +141,7 @@ fn json_error(e: serde_json::Error) -> MapError {
     MapError::Json {
         line: e.line(),
         column: e.column(),
-        message: e.to_string(),
+        message: crate::json_error::json_message(&e),
     }
 }
 
@@ -279,6 +279,40 @@ struct ReadMap {
     edges: Vec<[PlaceId; 2]>,
 }
 
+/// An edge as read: exactly two place ids `[a, b]` (a third is refused as such; as
+/// `[PlaceId; 2]` it read "trailing characters").
+struct EdgePair([PlaceId; 2]);
+
+impl<'de> Deserialize<'de> for EdgePair {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct PairVisitor;
+        impl<'de> Visitor<'de> for PairVisitor {
+            type Value = EdgePair;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("an edge: a pair of place ids [a, b]")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<EdgePair, A::Error> {
+                use serde::de::Error;
+                let a = s
+                    .next_element()?
+                    .ok_or_else(|| A::Error::invalid_length(0, &self))?;
+                let b = s
+                    .next_element()?
+                    .ok_or_else(|| A::Error::invalid_length(1, &self))?;
+                let mut len = 2;
+                while s.next_element::<IgnoredAny>()?.is_some() {
+                    len += 1;
+                }
+                if len > 2 {
+                    return Err(A::Error::invalid_length(len, &self));
+                }
+                Ok(EdgePair([a, b]))
+            }
+        }
+        d.deserialize_seq(PairVisitor)
+    }
+}
+
 /// Reads a [`MapFile`] keeping at most `max_places` places; a problem that is not
 /// malformed JSON (the format version) goes to `problem`.
 struct MapSeed<'a> {
@@ -339,7 +373,10 @@ impl<'de> Visitor<'de> for MapSeed<'_> {
                         m.next_value::<IgnoredAny>()?;
                         Vec::new()
                     } else {
-                        m.next_value::<Vec<[PlaceId; 2]>>()?
+                        m.next_value::<Vec<EdgePair>>()?
+                            .into_iter()
+                            .map(|e| e.0)
+                            .collect()
                     });
                 }
                 "name" | "classes" | "places" | "edges" => return Err(dup()),

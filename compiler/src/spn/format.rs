@@ -19,7 +19,10 @@ pub const SPN_FORMAT_VERSION: u32 = 1;
 #[derive(Debug, Error)]
 pub enum SpnFormatError {
     /// The text is not valid JSON or does not have the SPN file's shape.
-    #[error("invalid SPN JSON at line {line}, column {column}: {source}")]
+    #[error(
+        "invalid SPN JSON at line {line}, column {column}: {}",
+        crate::json_error::json_message(source)
+    )]
     Json {
         /// 1-based line of the error.
         line: usize,

@@ -137,12 +137,8 @@ impl TreeMixture {
                 message: format!("this is a {} model, not a tree mixture", family.name()),
             });
         }
-        let model: TreeMixture = serde_json::from_str(text).map_err(|e| ModelFileError::Parse {
-            source_name: source_name.to_string(),
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
+        let model: TreeMixture = serde_json::from_str(text)
+            .map_err(|e| crate::learn::file::parse_error(source_name, e))?;
         model.check(source_name)?;
         Ok(model)
     }
