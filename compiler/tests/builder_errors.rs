@@ -205,13 +205,18 @@ fn tree_mixture_models_compile_through_the_builder() {
         .generate()
         .unwrap();
     assert_ne!(src, other, "the seed draws other trees");
-    // Decompositions belong to GraphSPNs.
-    let err = Builder::new(&trees, &floor)
-        .decompositions_file(demo().join("none.json"))
-        .generate()
-        .unwrap_err();
-    assert!(matches!(err, BuildError::BadOption(_)), "{err}");
-    assert!(err.to_string().contains("tree_model.json"), "{err}");
+    // Decompositions belong to GraphSPNs, also with a tree count beside them (which
+    // used to drop the file silently and generate).
+    for b in [
+        Builder::new(&trees, &floor).decompositions_file(demo().join("none.json")),
+        Builder::new(&trees, &floor)
+            .decompositions_file(demo().join("none.json"))
+            .count(3),
+    ] {
+        let err = b.generate().unwrap_err();
+        assert!(matches!(err, BuildError::BadOption(_)), "{err}");
+        assert!(err.to_string().contains("tree_model.json"), "{err}");
+    }
     // So are the decompositions' strategy and candidates: refused, not ignored.
     for (builder, option) in [
         (
@@ -281,4 +286,56 @@ fn tree_mixture_models_compile_through_the_builder() {
         .generate()
         .unwrap_err();
     assert!(err.to_string().contains("budget of 4096 bytes"), "{err}");
+}
+
+/// Decompositions given (a file or a list) and an option that says how to draw them
+/// are refused together, in either order: `count` after `decompositions_file` used to
+/// drop the file silently and draw seed-0 decompositions instead.
+#[test]
+fn given_decompositions_and_drawing_options_are_exclusive() {
+    let (model, floor) = (demo().join("model.json"), demo().join("floor.json"));
+    let given = Builder::new(&model, &floor).load().unwrap().decompositions;
+    let file = tempfile::NamedTempFile::new().unwrap();
+    let map = TopoMap::load(&floor).unwrap();
+    let templates = Model::load(&model).unwrap().templates;
+    graphspn_compiler::decompose::file::save(file.path(), &given, &map, &templates).unwrap();
+    let with_file = || Builder::new(&model, &floor).decompositions_file(file.path());
+    let with_list = || Builder::new(&model, &floor).decompositions(given.clone());
+    let cases: Vec<(Builder, &str, &str)> = vec![
+        (
+            with_file().count(2),
+            "Builder::count",
+            "Builder::decompositions_file",
+        ),
+        (
+            with_list().seed(7),
+            "Builder::seed",
+            "Builder::decompositions",
+        ),
+        (
+            Builder::new(&model, &floor).strategy(DecompositionStrategy::Cover),
+            "",
+            "",
+        ),
+        (
+            Builder::new(&model, &floor)
+                .candidates(20)
+                .decompositions_file(file.path()),
+            "Builder::candidates",
+            "Builder::decompositions_file",
+        ),
+    ];
+    for (b, option, source) in cases {
+        if option.is_empty() {
+            b.load_any().expect("drawing options alone are fine");
+            continue;
+        }
+        let err = b.load_any().unwrap_err();
+        let msg = err.to_string();
+        assert!(matches!(err, BuildError::BadOption(_)), "{msg}");
+        assert!(msg.contains(option) && msg.contains(source), "{msg}");
+    }
+    // The file alone is read as given.
+    let read = with_file().load().unwrap().decompositions;
+    assert_eq!(read, given);
 }

@@ -141,12 +141,21 @@ pub fn compile(
     Builder::new(model, map).module_name(module_name).run()
 }
 
-/// Where the decompositions come from.
+/// Decompositions given to the builder rather than drawn.
 #[derive(Clone, Debug)]
 enum DecSource {
     File(PathBuf),
     Given(Vec<Decomposition>),
-    Seeded(DecompositionParams),
+}
+
+impl DecSource {
+    /// The builder method that gave them, for messages.
+    fn method(&self) -> &'static str {
+        match self {
+            DecSource::File(_) => "Builder::decompositions_file",
+            DecSource::Given(_) => "Builder::decompositions",
+        }
+    }
 }
 
 /// Everything code is generated from, loaded and checked ([`Builder::load`]).
@@ -220,7 +229,14 @@ impl AnyInputs {
 pub struct Builder {
     model: PathBuf,
     map: PathBuf,
-    decompositions: DecSource,
+    /// Decompositions given ([`Builder::decompositions_file`],
+    /// [`Builder::decompositions`]); `None`: drawn with `drawing`.
+    decompositions: Option<DecSource>,
+    /// How decompositions (GraphSPN) or spanning trees (seed) are drawn.
+    drawing: DecompositionParams,
+    /// The first option set that says how to draw them ([`Builder::seed`],
+    /// [`Builder::count`], …): refused beside given decompositions.
+    drawing_set: Option<&'static str>,
     precision: Precision,
     module_name: String,
     out_dir: Option<PathBuf>,
@@ -245,7 +261,9 @@ impl Builder {
         Builder {
             model: model.into(),
             map: map.into(),
-            decompositions: DecSource::Seeded(DecompositionParams::default()),
+            decompositions: None,
+            drawing: DecompositionParams::default(),
+            drawing_set: None,
             precision: Precision::F32,
             module_name: "map".into(),
             out_dir: None,
@@ -260,33 +278,45 @@ impl Builder {
         }
     }
 
-    /// Reads the decompositions from a file written by [`crate::decompose::file::save`].
+    /// Reads the decompositions from a file written by [`crate::decompose::file::save`]
+    /// (GraphSPN only). Loading refuses it beside an option that says how to draw
+    /// decompositions ([`Builder::seed`], [`Builder::count`], [`Builder::candidates`],
+    /// [`Builder::strategy`]), in whichever order they were called.
     pub fn decompositions_file(mut self, path: impl Into<PathBuf>) -> Self {
-        self.decompositions = DecSource::File(path.into());
+        self.decompositions = Some(DecSource::File(path.into()));
         self
     }
 
-    /// Uses these decompositions (place indices in map order).
+    /// Uses these decompositions (place indices in map order; GraphSPN only). Refused
+    /// beside an option that says how to draw them, as [`Builder::decompositions_file`].
     pub fn decompositions(mut self, d: Vec<Decomposition>) -> Self {
-        self.decompositions = DecSource::Given(d);
+        self.decompositions = Some(DecSource::Given(d));
         self
     }
 
-    fn seeded(&mut self) -> &mut DecompositionParams {
-        if !matches!(self.decompositions, DecSource::Seeded(_)) {
-            self.decompositions = DecSource::Seeded(DecompositionParams::default());
-        }
-        match &mut self.decompositions {
-            DecSource::Seeded(p) => p,
-            _ => unreachable!("just set to Seeded"),
-        }
+    /// The drawing parameters, noting that `option` set one of them.
+    fn seeded(&mut self, option: &'static str) -> &mut DecompositionParams {
+        self.drawing_set.get_or_insert(option);
+        &mut self.drawing
     }
 
-    /// Decomposes the map with [`decompose_best`] from this seed (replaces a file or
-    /// explicit decompositions given before); for a tree mixture, the seed of its
-    /// spanning trees.
+    /// Decompositions given and options that draw them are exclusive: the one check
+    /// of both loaders (a drawing option used to replace given decompositions
+    /// silently).
+    fn check_decomposition_source(&self) -> Result<(), BuildError> {
+        if let (Some(given), Some(option)) = (&self.decompositions, self.drawing_set) {
+            return Err(BuildError::BadOption(format!(
+                "{option} says how to draw decompositions, but {} gives them: use one or the other",
+                given.method()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Decomposes the map with [`decompose_best`] from this seed; for a tree mixture,
+    /// the seed of its spanning trees.
     pub fn seed(mut self, seed: u64) -> Self {
-        self.seeded().seed = seed;
+        self.seeded("Builder::seed").seed = seed;
         self
     }
 
@@ -295,7 +325,7 @@ impl Builder {
     /// trees (default: the model's `trees`).
     pub fn count(mut self, count: usize) -> Self {
         self.count = Some(count);
-        let p = self.seeded();
+        let p = self.seeded("Builder::count");
         p.count = count;
         p.candidates = p.candidates.max(3 * count);
         self
@@ -305,7 +335,7 @@ impl Builder {
     /// GraphSPN only: generating a tree mixture with it set is an error).
     pub fn candidates(mut self, candidates: usize) -> Self {
         self.graphspn_only.get_or_insert("Builder::candidates");
-        self.seeded().candidates = candidates;
+        self.seeded("Builder::candidates").candidates = candidates;
         self
     }
 
@@ -315,7 +345,7 @@ impl Builder {
     /// with it set is an error).
     pub fn strategy(mut self, strategy: DecompositionStrategy) -> Self {
         self.graphspn_only.get_or_insert("Builder::strategy");
-        self.seeded().strategy = strategy;
+        self.seeded("Builder::strategy").strategy = strategy;
         self
     }
 
@@ -411,17 +441,18 @@ impl Builder {
         let model = load_model(&self.model)?;
         let map = load_map(&self.map)?;
         self.check_classes(&model.classes, &map)?;
-        let decompositions =
-            match &self.decompositions {
-                DecSource::File(path) => load_decompositions(path, &map, &model)?,
-                DecSource::Given(d) => d.clone(),
-                DecSource::Seeded(params) => decompose_best(&map, &model.templates, params)
-                    .map_err(|source| BuildError::Decompose {
-                        map: self.map.clone(),
-                        model: self.model.clone(),
-                        source,
-                    })?,
-            };
+        self.check_decomposition_source()?;
+        let decompositions = match &self.decompositions {
+            Some(DecSource::File(path)) => load_decompositions(path, &map, &model)?,
+            Some(DecSource::Given(d)) => d.clone(),
+            None => decompose_best(&map, &model.templates, &self.drawing).map_err(|source| {
+                BuildError::Decompose {
+                    map: self.map.clone(),
+                    model: self.model.clone(),
+                    source,
+                }
+            })?,
+        };
         Ok(Inputs {
             model,
             map,
@@ -444,15 +475,13 @@ impl Builder {
         }
         let map = load_map(&self.map)?;
         self.check_classes(&model.classes, &map)?;
-        let seed = match &self.decompositions {
-            DecSource::Seeded(p) => p.seed,
-            DecSource::File(_) | DecSource::Given(_) => {
-                return Err(BuildError::BadOption(format!(
-                    "model file {} is a tree mixture: it takes spanning trees (seed, count), not decompositions",
-                    self.model.display()
-                )));
-            }
-        };
+        if self.decompositions.is_some() {
+            return Err(BuildError::BadOption(format!(
+                "model file {} is a tree mixture: it takes spanning trees (seed, count), not decompositions",
+                self.model.display()
+            )));
+        }
+        let seed = self.drawing.seed;
         let count = self.count.unwrap_or(model.trees);
         let trees =
             SpanningTrees::covering(&map, count, seed).map_err(|source| BuildError::Trees {
@@ -574,7 +603,7 @@ impl Builder {
         if self.cargo_lines {
             println!("cargo:rerun-if-changed={}", self.model.display());
             println!("cargo:rerun-if-changed={}", self.map.display());
-            if let DecSource::File(p) = &self.decompositions {
+            if let Some(DecSource::File(p)) = &self.decompositions {
                 println!("cargo:rerun-if-changed={}", p.display());
             }
         }
