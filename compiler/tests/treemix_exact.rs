@@ -161,6 +161,16 @@ fn the_mpe_labelling_attains_its_value() {
             mpe.assignment.iter().map(|&k| Some(k as ClassId)).collect();
         let l = inst.log_likelihood_labelled(&fixed).unwrap();
         assert!(close(l, mpe.log_probability, 1e-12));
+        // An empty labelling is "none labelled", as the GraphSPN evaluators take it.
+        assert_eq!(inst.mpe(&[]).unwrap(), mpe, "seed {seed}");
+        assert_eq!(
+            inst.log_likelihood_labelled(&[]).unwrap(),
+            inst.log_likelihood().unwrap()
+        );
+        assert!(
+            inst.mpe(&fixed[1..]).is_err(),
+            "a short labelling is refused"
+        );
     }
 }
 

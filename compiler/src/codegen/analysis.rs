@@ -91,7 +91,7 @@ fn normalised(spn: &Spn) -> bool {
 /// from `plan_lower_bounds` without enumerating assignments (for the trained Star
 /// it is within 15% of the enumerated minimum); otherwise every one-hot assignment is
 /// evaluated node by node, up to [`MAX_ASSIGNMENTS`] and [`MAX_WORK`].
-pub fn numerics(spn: &Spn, precision: Precision, plan: Option<&Plan>) -> Numerics {
+pub(crate) fn numerics(spn: &Spn, precision: Precision, plan: Option<&Plan>) -> Numerics {
     let threshold = match precision {
         Precision::F32 => 1e-20,
         Precision::F64 => 1e-200,

@@ -316,7 +316,15 @@ impl TreeInstance {
         Ok(m - (values.len() as f64).ln())
     }
 
-    fn check_fixed(&self, fixed: &[Option<ClassId>]) -> Result<(), TreeMixError> {
+    /// The labelling to evaluate: `fixed` when it is valid, every place summed out
+    /// when it is empty (as the GraphSPN evaluators take an empty labelling).
+    fn labelling<'a>(
+        &self,
+        fixed: &'a [Option<ClassId>],
+    ) -> Result<std::borrow::Cow<'a, [Option<ClassId>]>, TreeMixError> {
+        if fixed.is_empty() {
+            return Ok(vec![None; self.num_places()].into());
+        }
         if fixed.len() != self.num_places() {
             return Err(TreeMixError::BadLabels(format!(
                 "{} labels for {} places",
@@ -334,7 +342,7 @@ impl TreeInstance {
                 self.place_ids[p], self.classes
             )));
         }
-        Ok(())
+        Ok(fixed.into())
     }
 
     /// `ln S(α)`: the natural log of the mixture's likelihood of the evidence,
@@ -344,11 +352,12 @@ impl TreeInstance {
         self.mix(&self.tree_values(&fixed).0)
     }
 
-    /// `ln S` with every labelled place restricted to its label (`None` = summed out):
-    /// with no evidence and every place labelled, `ln P(labels)`.
+    /// `ln S` with every labelled place restricted to its label (`None` = summed out;
+    /// an empty slice: none labelled): with no evidence and every place labelled,
+    /// `ln P(labels)`.
     pub fn log_likelihood_labelled(&self, fixed: &[Option<ClassId>]) -> Result<f64, TreeMixError> {
-        self.check_fixed(fixed)?;
-        self.mix(&self.tree_values(fixed).0)
+        let fixed = self.labelling(fixed)?;
+        self.mix(&self.tree_values(&fixed).0)
     }
 
     /// Exact marginals of every forest on its own (`P_t(Y_v = c | α)`), forest-major.
@@ -409,10 +418,11 @@ impl TreeInstance {
     /// The most probable `(forest, labelling)` pair: `max_t max_y (1/T) P_t(y) ∏_v
     /// α_v(y_v)^γ` (places in `fixed` keep their label), ties to the first forest and
     /// the smallest class. `log_max_product` is the log of that value;
-    /// `log_probability` is `ln S` with every place fixed to the labelling.
+    /// `log_probability` is `ln S` with every place fixed to the labelling. An empty
+    /// `fixed`: no place labelled.
     pub fn mpe(&self, fixed: &[Option<ClassId>]) -> Result<Mpe, TreeMixError> {
-        self.check_fixed(fixed)?;
-        let (phi, scale) = self.factors(fixed);
+        let fixed = self.labelling(fixed)?;
+        let (phi, scale) = self.factors(&fixed);
         let ln_phi: Vec<Vec<f64>> = phi
             .iter()
             .map(|r| r.iter().map(|x| x.ln()).collect())
