@@ -205,6 +205,12 @@ fn tree_mixture_models_compile_through_the_builder() {
         .generate()
         .unwrap();
     assert_ne!(src, other, "the seed draws other trees");
+    // `load` is the GraphSPN loader and says where a tree mixture is read.
+    let err = Builder::new(&trees, &floor).load().unwrap_err();
+    assert!(
+        matches!(err, BuildError::BadOption(_)) && err.to_string().contains("Builder::load_any"),
+        "{err}"
+    );
     // Decompositions belong to GraphSPNs, also with a tree count beside them (which
     // used to drop the file silently and generate).
     for b in [

@@ -436,9 +436,16 @@ impl Builder {
         })
     }
 
-    /// Loads and checks the model, the map and the decompositions.
+    /// Loads and checks the model (a GraphSPN: [`Builder::load_any`] reads either
+    /// family), the map and the decompositions.
     pub fn load(&self) -> Result<Inputs, BuildError> {
-        let model = load_model(&self.model)?;
+        let AnyModel::Graphspn(model) = load_any_model(&self.model)? else {
+            return Err(BuildError::BadOption(format!(
+                "model file {} is a tree mixture: Builder::load reads GraphSPN models only \
+                 (Builder::load_any, generate and run read either family)",
+                self.model.display()
+            )));
+        };
         let map = load_map(&self.map)?;
         self.check_classes(&model.classes, &map)?;
         self.check_decomposition_source()?;

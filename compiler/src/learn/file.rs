@@ -281,7 +281,7 @@ impl Model {
             return Err(ModelFileError::Invalid {
                 source_name: source_name.to_string(),
                 message: format!(
-                    "this is a {} model, not a GraphSPN; this command reads GraphSPN models only",
+                    "this is a {} model, not a GraphSPN, where only a GraphSPN model is read",
                     family.name()
                 ),
             });
