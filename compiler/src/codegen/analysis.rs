@@ -299,6 +299,14 @@ mod tests {
         let (value, max) = enumerated_minima(&independent(20)).expect("2^20 assignments");
         let expected = 0.25f64.powi(20);
         assert!((value / expected - 1.0).abs() < 1e-12 && (max / expected - 1.0).abs() < 1e-12);
+        // And at the work limit alone: the same 2^20 assignments of an SPN padded to
+        // 2,000 nodes (unreachable leaves) are 2.1e9 node evaluations, over MAX_WORK.
+        let mut heavy = independent(20);
+        while heavy.nodes.len() < 2000 {
+            heavy.nodes.push(Node::Leaf { var: 0, class: 0 });
+        }
+        const { assert!((1 << 20) <= MAX_ASSIGNMENTS && (1 << 20) * 2000 > MAX_WORK) };
+        assert_eq!(enumerated_minima(&heavy), None);
     }
 
     /// Two independent binary variables with sum weights `w` each.
