@@ -169,10 +169,29 @@ macro_rules! evidence_errors {
             let rows = vec![[1.0f32; NUM_CLASSES]; NUM_PLACES - 1];
             assert_eq!(
                 <m::Map as CompiledMap>::log_likelihood(&rows),
-                Err(EvidenceError::WrongShape {
-                    place: NUM_PLACES,
+                Err(EvidenceError::WrongLength {
                     expected: NUM_PLACES,
                     found: NUM_PLACES - 1,
+                })
+            );
+            // The output and the labels are checked the same way, and the message
+            // names no place (the evidence was right).
+            let rows = vec![[1.0f32; NUM_CLASSES]; NUM_PLACES];
+            let mut out = vec![[0.0f32; NUM_CLASSES]; NUM_PLACES + 1];
+            let err = <m::Map as CompiledMap>::marginals(&rows, &mut out).unwrap_err();
+            assert_eq!(
+                err,
+                EvidenceError::WrongLength {
+                    expected: NUM_PLACES,
+                    found: NUM_PLACES + 1,
+                }
+            );
+            let mut labels = vec![0u16; 2];
+            assert_eq!(
+                <m::Map as CompiledMap>::mpe(&rows, &mut labels),
+                Err(EvidenceError::WrongLength {
+                    expected: NUM_PLACES,
+                    found: 2,
                 })
             );
         }

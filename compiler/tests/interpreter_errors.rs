@@ -75,13 +75,15 @@ fn wrong_shape() {
     let (e, m) = ev_err(vec![vec![1.0, 1.0, 1.0]]);
     assert_eq!(
         e,
-        InferenceError::Evidence(EvidenceError::WrongShape {
-            place: 2,
+        InferenceError::Evidence(EvidenceError::WrongLength {
             expected: 2,
             found: 1
         })
     );
-    assert!(m.contains("expected 2, found 1"), "{m}");
+    assert!(
+        m.contains("a slice of 1 entries where the map has 2 places"),
+        "{m}"
+    );
     let (e, m) = ev_err(vec![vec![1.0, 1.0, 1.0], vec![1.0, 1.0, 1.0]]);
     assert_eq!(
         e,

@@ -10,8 +10,8 @@ use crate::EvidenceError;
 /// each row holding one non-negative likelihood per class. Rows are the
 /// associated type [`CompiledMap::Row`] (`[Scalar; NUM_CLASSES]`), passed as slices
 /// so code generic over maps needs no const-generic arithmetic; a slice whose length
-/// is not [`CompiledMap::NUM_PLACES`] is rejected with [`EvidenceError::WrongShape`]
-/// (`place` = expected place count). Labels are class indices, `u16::MAX` = unknown.
+/// is not [`CompiledMap::NUM_PLACES`] (evidence, marginals or labels) is rejected with
+/// [`EvidenceError::WrongLength`]. Labels are class indices, `u16::MAX` = unknown.
 ///
 /// All methods are allocation-free and never panic.
 pub trait CompiledMap {
@@ -135,11 +135,10 @@ pub trait CompiledMap {
     fn state_mpe(s: &mut Self::State, labels: &mut [u16]) -> Result<Self::Scalar, EvidenceError>;
 }
 
-/// Converts a slice of rows into a fixed-size array reference, or reports
-/// [`EvidenceError::WrongShape`] (`place` = expected place count).
+/// Converts a slice of one entry per place into a fixed-size array reference, or
+/// reports [`EvidenceError::WrongLength`].
 pub fn fixed<T, const N: usize>(s: &[T]) -> Result<&[T; N], EvidenceError> {
-    s.try_into().map_err(|_| EvidenceError::WrongShape {
-        place: N,
+    s.try_into().map_err(|_| EvidenceError::WrongLength {
         expected: N,
         found: s.len(),
     })
@@ -148,9 +147,6 @@ pub fn fixed<T, const N: usize>(s: &[T]) -> Result<&[T; N], EvidenceError> {
 /// Mutable version of [`fixed`].
 pub fn fixed_mut<T, const N: usize>(s: &mut [T]) -> Result<&mut [T; N], EvidenceError> {
     let found = s.len();
-    s.try_into().map_err(|_| EvidenceError::WrongShape {
-        place: N,
-        expected: N,
-        found,
-    })
+    s.try_into()
+        .map_err(|_| EvidenceError::WrongLength { expected: N, found })
 }

@@ -38,11 +38,19 @@ pub enum EvidenceError {
     ZeroLikelihood,
     /// The evidence has the wrong number of places or classes.
     WrongShape {
-        /// Index of the first place whose row has the wrong length, or the expected place count.
+        /// Index of the first place whose row has the wrong length.
         place: usize,
-        /// What was expected (classes per row, or number of rows).
+        /// Classes per row.
         expected: usize,
-        /// What was given.
+        /// The row's length.
+        found: usize,
+    },
+    /// A slice that should hold one entry per place (evidence rows, marginals, labels)
+    /// has another length.
+    WrongLength {
+        /// Number of places of the map.
+        expected: usize,
+        /// The slice's length.
         found: usize,
     },
     /// A place index outside the map (`place >= places`), given to a `State` call.
@@ -96,6 +104,10 @@ impl fmt::Display for EvidenceError {
             } => write!(
                 f,
                 "evidence has the wrong shape at place index {place}: expected {expected}, found {found}"
+            ),
+            EvidenceError::WrongLength { expected, found } => write!(
+                f,
+                "a slice of {found} entries where the map has {expected} places (evidence rows, marginals and labels take one entry per place)"
             ),
             EvidenceError::PlaceOutOfRange { place, places } => write!(
                 f,

@@ -41,6 +41,13 @@ fn every_error_says_what_and_where() {
             "evidence has the wrong shape at place index 5: expected 10, found 9",
         ),
         (
+            EvidenceError::WrongLength {
+                expected: 80,
+                found: 79,
+            },
+            "a slice of 79 entries where the map has 80 places (evidence rows, marginals and labels take one entry per place)",
+        ),
+        (
             EvidenceError::PlaceOutOfRange {
                 place: 80,
                 places: 80,

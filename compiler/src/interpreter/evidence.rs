@@ -35,8 +35,7 @@ impl Evidence {
     /// is the variable index.
     pub fn validate(&self, classes: &[u32]) -> Result<(), EvidenceError> {
         if self.rows.len() != classes.len() {
-            return Err(EvidenceError::WrongShape {
-                place: classes.len(),
+            return Err(EvidenceError::WrongLength {
                 expected: classes.len(),
                 found: self.rows.len(),
             });

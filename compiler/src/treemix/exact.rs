@@ -156,8 +156,7 @@ impl TreeInstance {
     /// checked by the interpreter's rules ([`check_row`]); nothing changes on error.
     pub fn set_all_evidence(&mut self, rows: &[Vec<f64>]) -> Result<(), TreeMixError> {
         if rows.len() != self.num_places() {
-            return Err(EvidenceError::WrongShape {
-                place: self.num_places(),
+            return Err(EvidenceError::WrongLength {
                 expected: self.num_places(),
                 found: rows.len(),
             }

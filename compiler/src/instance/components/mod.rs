@@ -480,8 +480,7 @@ impl ComponentInstance {
     pub fn set_all_evidence(&mut self, rows: &[Vec<f64>]) -> Result<(), InstanceQueryError> {
         if rows.len() != self.num_places {
             return Err(InstanceQueryError::Inference(
-                EvidenceError::WrongShape {
-                    place: self.num_places,
+                EvidenceError::WrongLength {
                     expected: self.num_places,
                     found: rows.len(),
                 }
