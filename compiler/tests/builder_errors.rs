@@ -111,8 +111,14 @@ fn run_writes_only_when_changed() {
     std::thread::sleep(std::time::Duration::from_millis(20));
     b.clone().run().unwrap();
     assert_eq!(std::fs::metadata(&out).unwrap().modified().unwrap(), first);
-    let bad = b.clone().module_name("not an ident").run().unwrap_err();
-    assert!(matches!(bad, BuildError::BadOption(_)), "{bad}");
+    for name in ["not an ident", "über", "1floor"] {
+        let bad = b.clone().module_name(name).run().unwrap_err();
+        assert!(matches!(bad, BuildError::BadOption(_)), "{bad}");
+        assert!(
+            bad.to_string().contains("use ASCII letters, digits and _"),
+            "{bad}"
+        );
+    }
 }
 
 /// A module name that is an identifier but a keyword (`fn`, `gen` reserved in edition

@@ -99,7 +99,7 @@ pub fn check_module_name(name: &str) -> Result<(), BuildError> {
         && name.chars().all(|c| c == '_' || c.is_ascii_alphanumeric());
     if !ident || name == "_" {
         return Err(BuildError::BadOption(format!(
-            "module name {name:?} is not a Rust identifier (letters, digits and _, not starting with a digit)"
+            "module name {name:?}: use ASCII letters, digits and _, not starting with a digit (it names the module and its file `{name}.rs`; Rust's non-ASCII identifiers are not taken)"
         )));
     }
     if KEYWORDS.contains(&name) {
