@@ -326,3 +326,54 @@ fn the_model_file_round_trips_and_every_bad_field_is_named() {
     );
     bad(&|v| v["extra"] = serde_json::json!(1), "unknown field");
 }
+
+/// A map whose public graph was changed after `TopoMap::new` checked it (a self-loop,
+/// an edge twice, ids out of order, a class index past the classes) is refused by the
+/// one check every model family runs, with what breaks; a tree mixture's evaluator
+/// (which otherwise answered) says so too.
+#[test]
+fn a_graph_broken_after_construction_is_refused_by_every_family() {
+    use graphspn_compiler::map::{MapFitError, Place};
+    let model = random_model(2, 2, 1, Mixing::Posterior, 3);
+    let classes = model.classes.clone();
+    let place = |id: u32| Place {
+        id,
+        class: Some(0),
+        placeholder: false,
+        x: 0.0,
+        y: 0.0,
+    };
+    let good = TopoMap::new(
+        "m",
+        classes.clone(),
+        vec![place(1), place(2), place(3)],
+        vec![(1, 2), (2, 3)],
+    )
+    .unwrap();
+    good.check_labellable(&classes).unwrap();
+    let mut broken: Vec<(TopoMap, &str)> = Vec::new();
+    let mut m = good.clone();
+    let a = m.graph.node_indices().next().unwrap();
+    m.graph.add_edge(a, a, ());
+    broken.push((m, "place 1 has an edge to itself"));
+    let mut m = good.clone();
+    let (a, b) = (
+        m.graph.node_indices().next().unwrap(),
+        m.graph.node_indices().nth(1).unwrap(),
+    );
+    m.graph.add_edge(b, a, ());
+    broken.push((m, "the edge between places 1 and 2 is there twice"));
+    let mut m = good.clone();
+    m.graph.node_weights_mut().next().unwrap().id = 5;
+    broken.push((m, "id 5 at index 0 is followed by id 2"));
+    let mut m = good.clone();
+    m.graph.node_weights_mut().nth(2).unwrap().class = Some(2);
+    broken.push((m, "place 3 (index 2) has class index 2 of 2 classes"));
+    for (m, what) in &broken {
+        let err = m.check_labellable(&classes).unwrap_err();
+        assert!(matches!(err, MapFitError::Malformed { .. }), "{err}");
+        assert!(err.to_string().contains(what), "{err} lacks {what}");
+        let err = TreeInstance::with_covering_trees(&model, m, 0).unwrap_err();
+        assert!(err.to_string().contains(what), "{err}");
+    }
+}

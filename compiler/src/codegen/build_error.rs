@@ -52,6 +52,14 @@ pub enum BuildError {
         /// The map file or folder.
         path: PathBuf,
     },
+    /// The map's graph breaks an invariant ([`crate::map::MapFitError::Malformed`]).
+    #[error("map {}: malformed: {what}", path.display())]
+    MalformedMap {
+        /// The map file or folder.
+        path: PathBuf,
+        /// What breaks.
+        what: String,
+    },
     /// The model and the map name different classes (or the same in another order).
     #[error(
         "model file {} has classes {} but map {} has classes {}",

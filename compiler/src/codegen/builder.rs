@@ -433,6 +433,10 @@ impl Builder {
             MapFitError::Empty(_) => BuildError::EmptyMap {
                 path: self.map.clone(),
             },
+            MapFitError::Malformed { what, .. } => BuildError::MalformedMap {
+                path: self.map.clone(),
+                what,
+            },
         })
     }
 

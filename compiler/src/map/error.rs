@@ -320,4 +320,13 @@ pub enum MapFitError {
     /// The map has no places.
     #[error("the map {0:?} has no places")]
     Empty(String),
+    /// The map's graph breaks an invariant (e.g. a self-loop added after
+    /// [`TopoMap::new`](super::TopoMap::new) checked it).
+    #[error("the map {map:?} is malformed: {what}")]
+    Malformed {
+        /// Map name.
+        map: String,
+        /// What breaks.
+        what: String,
+    },
 }

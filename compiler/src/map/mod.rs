@@ -155,7 +155,10 @@ pub struct TopoMap {
 
 impl TopoMap {
     /// Whether a model of `classes` can label this map: the same class names in the
-    /// same order, and at least one place. Every model family's input check runs it.
+    /// same order, at least one place, and a graph that keeps the map's invariants
+    /// (which its public fields let a caller break after [`TopoMap::new`]: ids
+    /// strictly increasing in place order, class indices within the classes, no
+    /// self-loop, no repeated edge). Every model family's input check runs it.
     pub fn check_labellable(&self, classes: &ClassSet) -> Result<(), MapFitError> {
         if self.classes != *classes {
             return Err(MapFitError::ClassMismatch {
@@ -166,6 +169,51 @@ impl TopoMap {
         }
         if self.num_places() == 0 {
             return Err(MapFitError::Empty(self.name.clone()));
+        }
+        self.check_graph().map_err(|what| MapFitError::Malformed {
+            map: self.name.clone(),
+            what,
+        })
+    }
+
+    /// The graph's invariants ([`TopoMap::check_labellable`]), or what breaks first.
+    fn check_graph(&self) -> Result<(), String> {
+        let places: Vec<&Place> = self.places().collect();
+        for (i, pair) in places.windows(2).enumerate() {
+            if pair[0].id >= pair[1].id {
+                return Err(format!(
+                    "place ids are not strictly increasing in place order: id {} at index {} \
+                     is followed by id {}",
+                    pair[0].id, i, pair[1].id
+                ));
+            }
+        }
+        if let Some((i, p)) = places.iter().enumerate().find(|(_, p)| {
+            p.class
+                .is_some_and(|c| usize::from(c) >= self.classes.len())
+        }) {
+            return Err(format!(
+                "place {} (index {i}) has class index {} of {} classes",
+                p.id,
+                p.class.unwrap_or_default(),
+                self.classes.len()
+            ));
+        }
+        let mut edges: Vec<(usize, usize)> = self
+            .graph
+            .edge_indices()
+            .filter_map(|e| self.graph.edge_endpoints(e))
+            .map(|(a, b)| (a.index().min(b.index()), a.index().max(b.index())))
+            .collect();
+        if let Some(&(a, _)) = edges.iter().find(|(a, b)| a == b) {
+            return Err(format!("place {} has an edge to itself", places[a].id));
+        }
+        edges.sort_unstable();
+        if let Some(w) = edges.windows(2).find(|w| w[0] == w[1]) {
+            return Err(format!(
+                "the edge between places {} and {} is there twice",
+                places[w[0].0].id, places[w[0].1].id
+            ));
         }
         Ok(())
     }
