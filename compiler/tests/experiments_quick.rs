@@ -9,7 +9,7 @@ use graphspn_compiler::experiments::config::ReproduceConfig;
 use graphspn_compiler::experiments::report::write_outputs;
 use graphspn_compiler::experiments::reproduce::{load_data, run};
 use graphspn_compiler::experiments::results::{Experiment, Reproduction, Table1Row};
-use graphspn_compiler::experiments::summary::SummaryCell;
+use graphspn_compiler::experiments::summary::{SummaryCell, summarise};
 use graphspn_compiler::learn::Progress;
 use graphspn_compiler::noise::MeanStd;
 
@@ -76,6 +76,37 @@ fn quick_reproduction_on_cold() {
     write_outputs(&single, &setups, &cfg, one.path(), "").expect("write outputs");
     let report1 = std::fs::read_to_string(one.path().join("REPORT.md")).unwrap();
     let h = head(&report1);
+    // A set without placeholders: its placeholder cells have no figure, no baseline
+    // and no paired difference (they read "– vs MRF-2"), and no placeholder panel.
+    let mut none = single.clone();
+    for g in none
+        .graphs
+        .iter_mut()
+        .filter(|g| g.experiment == Experiment::Placeholders)
+    {
+        g.scored = 0;
+        g.evidence_only = f64::NAN;
+        g.accuracy.0.iter_mut().for_each(|a| *a = f64::NAN);
+    }
+    for c in summarise(&none)
+        .iter()
+        .filter(|c| c.experiment == Experiment::Placeholders)
+    {
+        assert!(
+            c.maps == 0 && c.better_tuned_mrf.is_none() && c.paired.is_empty(),
+            "{c:?}"
+        );
+    }
+    // A building with fewer maps than asked: the header says what ran.
+    none.buildings[0].test_maps.truncate(1);
+    let nothing = tempfile::tempdir().unwrap();
+    write_outputs(&none, &setups, &cfg, nothing.path(), "").expect("write outputs");
+    let report3 = std::fs::read_to_string(nothing.path().join("REPORT.md")).unwrap();
+    assert!(!report3.contains("– vs"), "{report3}");
+    assert!(
+        report3.contains("up to 2 maps (1 in all: a building with fewer runs them all)"),
+        "{report3}"
+    );
     assert_eq!(h.matches(" | ").count(), 6, "{h}");
     // Without novelty detection (`--no-novelty`) the report names no ROC figure and
     // says it was not run.
@@ -195,7 +226,7 @@ fn quick_reproduction_on_cold() {
         assert!(acc.low <= acc.mean && acc.mean <= acc.high, "{cell:?}");
         assert_eq!(cell.paired.len(), 2);
         assert_eq!(cell.paired[0].model, "Tree mixture");
-        assert!(["MRF-2", "MRF-3"].contains(&cell.better_tuned_mrf.as_str()));
+        assert!(["MRF-2", "MRF-3"].contains(&cell.better_tuned_mrf.as_deref().unwrap()));
         let row = "| Stockholm | Tree mixture | ";
         let line = report
             .lines()

@@ -14,6 +14,7 @@ use super::reproduce::{BuildingSetup, ReproduceError, run_graph};
 use super::result_tables::{accuracy_table, bp_convergence, ceiling_section, paired_tables};
 use super::results::{Experiment, Reproduction, SetScores, set_score};
 use super::sets::{Evaluation, SetRole};
+use super::stats::levels_of;
 use super::summary::{SummaryCell, summarise};
 use super::validation_report::{
     counted, option_summary, search_summary, settings_table, validation_tables,
@@ -202,10 +203,18 @@ pub fn write_outputs(
         let name = format!("{labels}_{}.svg", setup.building);
         write(&name, &fig8_panel(setup, &o, fig_level))?;
         figures.push(name);
-        let o = run_graph(setup, 0, pie_level, 0, Experiment::Placeholders, cfg)?;
-        let name = format!("placeholders_{}.svg", setup.building);
-        write(&name, &pie_panel(&setup.maps[0], &o, pie_level))?;
-        figures.push(name);
+        // The first test map with a placeholder (none: no placeholder figure; its
+        // accuracies would be over no place).
+        if let Some(m) = setup
+            .maps
+            .iter()
+            .position(|m| m.places().any(|p| p.placeholder))
+        {
+            let o = run_graph(setup, m, pie_level, 0, Experiment::Placeholders, cfg)?;
+            let name = format!("placeholders_{}.svg", setup.building);
+            write(&name, &pie_panel(&setup.maps[m], &o, pie_level))?;
+            figures.push(name);
+        }
     }
     write(
         "REPORT.md",
@@ -251,12 +260,7 @@ fn report_markdown(
          evidence noise: {}. Run time {:.1} s.\n",
         rep.seed,
         counted(rep.buildings.len(), "test building"),
-        if cfg.maps_per_building == usize::MAX {
-            let n: usize = rep.buildings.iter().map(|b| b.test_maps.len()).sum();
-            format!("all maps ({n} in all)")
-        } else {
-            counted(cfg.maps_per_building, "map")
-        },
+        maps_run(rep, cfg.maps_per_building),
         counted(cfg.rounds, "round"),
         if rep.paper_noise {
             "**paper-effective** (wrong class drawn among all 10 classes, `--paper-noise`)"
@@ -338,7 +342,7 @@ fn report_markdown(
          Accuracy over placeholders only (they get a uniform evidence row), mean over \
          the test maps with at least one placeholder and bootstrap 95% interval, in %{}.\n",
         if paper { " (paper Table 2)" } else { "" },
-        if paper {
+        if paper && levels_of(rep).iter().any(|l| *l == 2 || *l == 5) {
             "; the paper's numbers (NL2 and NL5 only) beside ours (its MRFs beside our \
              paper-style MRFs)"
         } else {
@@ -522,8 +526,8 @@ fn report_markdown(
          `{labels}_*.svg`: first test map at {fig_level} (ground truth; places whose \
          evidence argmax is wrong in black; the tree mixture's, GraphSPN's and MRF-2's \
          labels). `placeholders_*.svg`: the tree mixture's and GraphSPN's marginals of \
-         the placeholders (pies) at {pie_level}, explored places in their true class, \
-         wrong-evidence places in black.\n"
+         the placeholders (pies) at {pie_level} on the first test map that has any, \
+         explored places in their true class, wrong-evidence places in black.\n"
     );
     for f in figures {
         let _ = writeln!(s, "- [{f}]({f})");
@@ -545,6 +549,20 @@ fn report_markdown(
     );
     s.push_str(extra);
     s
+}
+
+/// How many test maps each building ran: the count asked for when every building had
+/// that many, else what ran (a building with fewer maps runs them all).
+fn maps_run(rep: &Reproduction, asked: usize) -> String {
+    let counts: Vec<usize> = rep.buildings.iter().map(|b| b.test_maps.len()).collect();
+    let total: usize = counts.iter().sum();
+    if asked == usize::MAX {
+        format!("all maps ({total} in all)")
+    } else if counts.iter().all(|&n| n == asked) {
+        counted(asked, "map")
+    } else {
+        format!("up to {asked} maps ({total} in all: a building with fewer runs them all)")
+    }
 }
 
 /// `mean ± std` to three decimals, or `–` when no place was counted (the mean is

@@ -101,8 +101,12 @@ fn paired_table(rep: &Reproduction, cells: &[SummaryCell], e: Experiment, ours: 
     for b in building_rows(rep) {
         let _ = write!(s, "| {} |", b.unwrap_or("**all**"));
         for &l in &levels {
-            let p = &cell(cells, b, e, l).paired[ours];
-            let _ = write!(s, " {} vs {} |", shown(p.difference), p.baseline);
+            match cell(cells, b, e, l).paired.get(ours) {
+                Some(p) => {
+                    let _ = write!(s, " {} vs {} |", shown(p.difference), p.baseline);
+                }
+                None => s.push_str(" – |"),
+            }
         }
         s.push('\n');
     }

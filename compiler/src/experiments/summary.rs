@@ -73,9 +73,11 @@ pub struct SummaryCell {
     pub accuracy: Scores<Option<Interval>>,
     /// Accuracy of the evidence's argmax alone.
     pub evidence_only: Option<Interval>,
-    /// The better tuned MRF of the cell (higher mean accuracy).
-    pub better_tuned_mrf: String,
-    /// Each of our models ([`OUR_MODELS`]) against that MRF.
+    /// The better tuned MRF of the cell (higher mean accuracy); `None` when no map was
+    /// scored.
+    pub better_tuned_mrf: Option<String>,
+    /// Each of our models ([`OUR_MODELS`]) against that MRF (empty when no map was
+    /// scored).
     pub paired: Vec<PairedDifference>,
 }
 
@@ -111,8 +113,10 @@ pub fn summarise(rep: &Reproduction) -> Vec<SummaryCell> {
                 };
                 let (maps, evidence_only) = series(None);
                 let best = best_baseline(rep, b, e, l);
+                let scored = maps > 0;
                 let paired = OUR_MODELS
                     .iter()
+                    .filter(|_| scored)
                     .map(|&k| {
                         let v = per_map(rep, b, e, l, |g| g.accuracy[k] - g.accuracy[best]);
                         PairedDifference {
@@ -129,7 +133,7 @@ pub fn summarise(rep: &Reproduction) -> Vec<SummaryCell> {
                     maps,
                     accuracy: Scores::from_fn(|k| series(Some(k)).1),
                     evidence_only,
-                    better_tuned_mrf: MODELS[best].into(),
+                    better_tuned_mrf: scored.then(|| MODELS[best].into()),
                     paired,
                 });
             }
