@@ -537,11 +537,15 @@ fn a_decompositions_file_gives_the_module_of_its_decompositions() {
     let (model, map) = (&inputs.model, &inputs.map);
     let decs = decompose_best(map, &model.templates, &DecompositionParams::default()).unwrap();
     assert!(!decs.is_empty());
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("decs.json");
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("decs.json");
     file::save(&path, &decs, map, &model.templates).unwrap();
-    let from_file = generate(&b.clone().decompositions_file(&path));
-    let given = generate(&b.clone().decompositions(decs));
+    // Given decompositions take no drawing options (seed, count): a bare builder.
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../generated/demo");
+    let bare = Builder::new(dir.join("model.json"), dir.join("floor.json"))
+        .vectorisation(Vectorisation::Scalar);
+    let from_file = generate(&bare.clone().decompositions_file(&path));
+    let given = generate(&bare.decompositions(decs));
     assert!(from_file.0 == given.0, "the file's module differs");
     assert_eq!(from_file.1, given.1);
 }
