@@ -9,6 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use graphspn_compiler::decompose::{DecompositionParams, decompose_best};
 use graphspn_compiler::experiments::evidence::{NoiseLevel, simulate_map_evidence};
+use graphspn_compiler::experiments::validation_report::counted;
 use graphspn_compiler::instance::Instance;
 use graphspn_compiler::interpreter::{Evaluator, Evidence};
 use graphspn_compiler::learn::Model;
@@ -97,12 +98,13 @@ pub fn section(seed: u64, rounds: usize) -> Result<String> {
         s,
         "Fixed map: `{}` ({} places), compiled into `graphspn-generated` with the demo model \
          (`generated/demo/model.json`, trained on all 90 maps, so this check is about agreement, \
-         not accuracy). {cases} evidence vectors (NL1–6 × {rounds} rounds, with and without \
+         not accuracy). {cases} evidence vectors (NL1–6 × {}, with and without \
          placeholder evidence): max |Δ marginal| = {max_abs:.2e}, max relative Δ log-likelihood = \
          {max_rel:.2e} (tolerance 1e-4, f32), argmax agreement {agree}/{total} places. \
          **{}**. Time per `marginals` call: generated {:.1} µs, interpreter {:.1} µs ({:.0}×).",
         map.name,
         n,
+        counted(rounds, "round"),
         if ok { "Agrees" } else { "DISAGREES" },
         t_gen / cases as f64 * 1e6,
         t_int / cases as f64 * 1e6,

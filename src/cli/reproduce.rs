@@ -131,7 +131,7 @@ pub struct ProtocolOptions {
     /// Noise levels to run, comma-separated (default: 1..6).
     #[arg(long, value_delimiter = ',')]
     pub levels: Option<Vec<u8>>,
-    /// Evidence rounds per map and level (default 3; 1 with `reproduce --quick`).
+    /// Evidence rounds per map and level (default 3; `reproduce --quick` uses 1).
     #[arg(long)]
     pub rounds: Option<usize>,
     /// Skip the novelty-detection experiment.

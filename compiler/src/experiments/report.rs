@@ -428,7 +428,9 @@ fn report_markdown(
         }
         let _ = writeln!(
             s,
-            "\nMean per-variable log-likelihood by variant:\n\n| Variant | {} |\n|---|{}",
+            "\nMean per-variable log-likelihood by variant (mean ± population standard \
+             deviation over the variant's labellings; the MRFs' are Bethe approximations, \
+             which can exceed 0 where a true log-likelihood cannot):\n\n| Variant | {} |\n|---|{}",
             MODELS.join(" | "),
             "---|".repeat(NUM_MODELS)
         );

@@ -7,14 +7,14 @@ use std::fmt::Write as _;
 use super::grid::ValidationGrid;
 
 /// `n` and the noun, plural unless `n` is 1: `1 round`, `3 rounds`.
-pub(crate) fn counted(n: usize, noun: &str) -> String {
+pub fn counted(n: usize, noun: &str) -> String {
     format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
 }
 
 /// What a validation searched: candidates per model (from `vals`, the first test
 /// building's) and the sample of each validation building (`grid`), saying so when
 /// that sample is smaller than the standard grid's (a smoke run such as `--tiny-grid`
-/// or `--quick`, not the protocol's search). Empty without a validation.
+/// or `reproduce --quick`, not the protocol's search). Empty without a validation.
 pub fn search_summary(vals: &[super::validate::Validation], grid: &ValidationGrid) -> String {
     let Some(first) = vals.first() else {
         return String::new();
@@ -43,7 +43,7 @@ pub fn search_summary(vals: &[super::validate::Validation], grid: &ValidationGri
         counted(grid.rounds, "round"),
         if smaller {
             format!(
-                " — **a reduced search** (a smoke run, e.g. `--tiny-grid` or `--quick`), not \
+                " — **a reduced search** (a smoke run such as `--tiny-grid` or `reproduce --quick`), not \
                  the protocol's ({} maps × {} levels × {} rounds)",
                 standard.maps_per_building,
                 standard.levels.len(),
