@@ -44,6 +44,15 @@ fn validate_then_reproduce_with_the_saved_settings() {
     for want in ["MRF-2 paper", "evidence only", "Paired difference", "["] {
         assert!(report.contains(want), "REPORT.md lacks {want:?}");
     }
+    // The report names the settings file and says how large the search behind it
+    // was: a --tiny-grid validation is a reduced search, also when reused.
+    assert_eq!(json["sample"]["rounds"], 1, "{json}");
+    for want in [
+        "Every setting below was given: `--settings ",
+        "on 1 map × NL2 × 1 round per validation building — **a reduced search**",
+    ] {
+        assert!(report.contains(want), "REPORT.md lacks {want:?}:\n{report}");
+    }
 }
 
 #[test]
@@ -289,10 +298,13 @@ fn evaluate_reuses_a_saved_validation() {
         "no validation run"
     );
     assert_eq!(json["buildings"][0]["settings"]["trees"]["trees"], 2);
+    assert_eq!(json["given_settings"]["entry"], "Stockholm");
     let report = std::fs::read_to_string(dir.path().join("e1/REPORT.md")).unwrap();
     for want in [
         "# Evaluation of the semantic-map models on your maps: Stockholm",
-        "Every setting below was given (`--settings`",
+        "Every setting below was given: `--settings ",
+        "validation.json` (entry Stockholm)",
+        "The file does not record how large its validation's search was",
         "| Stockholm | Freiburg, Saarbrucken |",
         "; training: epochs = 2 |",
         "all maps (2 in all) × 1 round per building and level",

@@ -386,6 +386,7 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
             .map(str::to_string)
             .collect(),
     );
+    let mut given = None;
     if let Some((saved, key, s)) = chosen {
         let training = cfg.train_buildings.clone().unwrap_or_default();
         saved.check_training(&key, &training)?;
@@ -395,9 +396,11 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
                 .map(|b| (b.clone(), s.clone()))
                 .collect(),
         );
+        given = Some(saved.given(std::slice::from_ref(&key), Some(key.clone())));
     }
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
+    rep.given_settings = given;
     rep.evaluation = Some(evaluation);
     write_folder(&args.run.out, |dir| {
         Ok(write_outputs(&rep, &setups, &cfg, dir, "")?)

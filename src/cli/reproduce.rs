@@ -9,12 +9,13 @@ use graphspn_compiler::decompose::DecompositionStrategy;
 use graphspn_compiler::domain;
 use graphspn_compiler::experiments::config::ReproduceConfig;
 use graphspn_compiler::experiments::evidence::{NoiseLevel, WrongClassDraw};
-use graphspn_compiler::experiments::grid::ValidationGrid;
+use graphspn_compiler::experiments::grid::{ValidationGrid, ValidationSample};
 use graphspn_compiler::experiments::protocol::training_buildings;
 use graphspn_compiler::experiments::report::write_outputs;
 use graphspn_compiler::experiments::reproduce::{load_data, run};
+use graphspn_compiler::experiments::results::GivenSettings;
 use graphspn_compiler::experiments::validate::{
-    DecompositionChoice, ModelSettings, fold_buildings, validate_for,
+    DecompositionChoice, ModelSettings, Validation, fold_buildings, validate_for,
 };
 use graphspn_compiler::experiments::validation_report::validation_markdown;
 use graphspn_compiler::json_error::json_message;
@@ -191,7 +192,11 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
         .iter()
         .map(|v| (v.test_building.clone(), v.chosen.clone()))
         .collect();
-    let json = serde_json::json!({ "settings": settings, "validation": vals });
+    let json = serde_json::json!({
+        "settings": settings,
+        "sample": cfg.grid.sample(),
+        "validation": vals,
+    });
     let md = validation_markdown(&vals, &cfg.grid, start.elapsed().as_secs_f64());
     write_folder(&args.run.out, |dir| {
         std::fs::write(
@@ -215,8 +220,14 @@ pub fn validate_cmd(args: ValidateArgs) -> Result<()> {
 #[serde(deny_unknown_fields)]
 struct SettingsFile {
     settings: BTreeMap<String, ModelSettings>,
+    /// What the validation scored candidates on (absent in files written before it
+    /// was recorded).
     #[serde(default)]
-    validation: Vec<ValidationRecord>,
+    sample: Option<ValidationSample>,
+    /// The validation records: their folds are read, and each whole record is kept
+    /// for the report when it parses.
+    #[serde(default)]
+    validation: Vec<serde_json::Value>,
 }
 
 /// One test building's validation in a validation.json: its folds name the training
@@ -236,9 +247,30 @@ pub struct SavedSettings {
     pub settings: BTreeMap<String, ModelSettings>,
     /// The buildings each test building's validation trained and validated on.
     validated_on: BTreeMap<String, std::collections::BTreeSet<String>>,
+    /// What the validation scored candidates on, when the file records it.
+    sample: Option<ValidationSample>,
+    /// The file's whole validation records (those that parse).
+    validations: Vec<Validation>,
 }
 
 impl SavedSettings {
+    /// Where a run's settings came from, for its report: this file, the `entry` used
+    /// for every test set (`evaluate --settings-of`) or none (`reproduce`: each test
+    /// building its own), and the validation records of `used` test buildings.
+    pub fn given(&self, used: &[String], entry: Option<String>) -> GivenSettings {
+        GivenSettings {
+            file: self.path.display().to_string(),
+            entry,
+            sample: self.sample.clone(),
+            validation: self
+                .validations
+                .iter()
+                .filter(|v| used.contains(&v.test_building))
+                .cloned()
+                .collect(),
+        }
+    }
+
     /// Refuses a run of `test_building` the file has no settings for, or whose settings
     /// were validated on other buildings than `training` (the models would be trained
     /// on one set and tuned on another). Files without the validation's folds are
@@ -296,7 +328,13 @@ pub fn read_settings(path: &std::path::Path) -> Result<SavedSettings> {
         })?;
     }
     let mut validated_on = BTreeMap::new();
-    for v in &file.validation {
+    let mut validations = Vec::new();
+    for (i, value) in file.validation.iter().enumerate() {
+        let v: ValidationRecord = serde_json::from_value(value.clone())
+            .map_err(|e| anyhow::anyhow!("{at}: validation record {i}: not a validation ({e})"))?;
+        if let Ok(whole) = serde_json::from_value::<Validation>(value.clone()) {
+            validations.push(whole);
+        }
         let mut buildings = std::collections::BTreeSet::new();
         for fold in &v.folds {
             let Some((train, val)) = fold_buildings(fold) else {
@@ -314,6 +352,8 @@ pub fn read_settings(path: &std::path::Path) -> Result<SavedSettings> {
         path: path.to_path_buf(),
         settings: file.settings,
         validated_on,
+        sample: file.sample,
+        validations,
     })
 }
 
@@ -444,15 +484,16 @@ pub fn run_cmd(args: ReproduceArgs) -> Result<()> {
     }
     let start = Instant::now();
     let all = load_data(&data)?;
-    if let Some(saved) = saved {
+    if let Some(saved) = &saved {
         for b in &cfg.test_buildings {
             let training = training_buildings(&all, b, &cfg)?;
             saved.check_training(b, &training)?;
         }
-        cfg.settings = Some(saved.settings);
+        cfg.settings = Some(saved.settings.clone());
     }
     let (mut rep, setups) = run(&all, &cfg)?;
     rep.seconds = start.elapsed().as_secs_f64();
+    rep.given_settings = saved.map(|s| s.given(&cfg.test_buildings, None));
     let check =
         super::generated_check::section(args.run.seed, if args.quick { 1 } else { cfg.rounds })?;
     write_folder(&args.run.out, |dir| {

@@ -64,7 +64,30 @@ fn variant(split: SplitChoice) -> (String, TrainingSettings) {
     (split.name().to_string(), t)
 }
 
+/// How much data a validation scored each candidate on, per validation building:
+/// recorded in validation.json, so that a run reusing its settings (`--settings`) can
+/// say how large the search behind them was.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidationSample {
+    /// Maps per validation building.
+    pub maps_per_building: usize,
+    /// Noise levels (1..6).
+    pub levels: Vec<u8>,
+    /// Evidence rounds per map and level.
+    pub rounds: usize,
+}
+
 impl ValidationGrid {
+    /// The sample this grid scores candidates on.
+    pub fn sample(&self) -> ValidationSample {
+        ValidationSample {
+            maps_per_building: self.maps_per_building,
+            levels: self.levels.iter().map(|l| l.get()).collect(),
+            rounds: self.rounds,
+        }
+    }
+
     /// Every candidate value against the domain of the setting it becomes: each is
     /// put into that model's settings and checked by their one check
     /// ([`ModelSettings::check`](super::settings::ModelSettings::check)), so the grid

@@ -272,17 +272,31 @@ fn report_markdown(
     if let Some(ev) = &rep.evaluation {
         s.push_str(&map_sets_section(ev));
     }
-    let chosen = if rep.validation.is_empty() {
-        "Every setting below was given (`--settings`: a saved validation, `graphspn \
-         validate`); no validation was run."
-            .to_string()
-    } else {
-        format!(
+    let chosen = match &rep.given_settings {
+        Some(g) => format!(
+            "Every setting below was given: `--settings {}`{}, the settings a \
+             leave-one-training-building-out validation chose (`graphspn validate`); no \
+             validation was run here. {}",
+            g.file,
+            g.entry
+                .as_ref()
+                .map_or(String::new(), |e| format!(" (entry {e})")),
+            match &g.sample {
+                Some(sample) => search_summary(&g.validation, sample),
+                None => "The file does not record how large its validation's search was \
+                         (it was written before validation.json recorded it)."
+                    .to_string(),
+            }
+        ),
+        None if rep.validation.is_empty() => "Every setting below was given (a saved \
+             validation, `graphspn validate`); no validation was run."
+            .to_string(),
+        None => format!(
             "Every setting below was chosen by leave-one-training-building-out validation \
              on {} only; the test maps are never read by it (`graphspn validate`). {}",
             training_wording(rep),
-            search_summary(&rep.validation, &cfg.grid)
-        )
+            search_summary(&rep.validation, &cfg.grid.sample())
+        ),
     };
     let _ = writeln!(
         s,

@@ -506,6 +506,7 @@ pub fn run(
         within_map: within,
         table1,
         seconds: 0.0,
+        given_settings: None,
         evaluation: None,
     };
     Ok((rep, setups))

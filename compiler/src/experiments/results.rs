@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use super::ceiling::CeilingRow;
+use super::grid::ValidationSample;
 use super::models::Scores;
 use super::novelty::{NoveltyResult, NoveltySet};
 use super::settings::ModelSettings;
@@ -48,6 +49,25 @@ pub struct GraphResult {
     pub accuracy: Scores<f64>,
     /// Whether loopy BP converged, by MRF name ([`MRF_MODELS`](super::models::MRF_MODELS)).
     pub bp_converged: BTreeMap<String, bool>,
+}
+
+/// Settings taken from a saved validation (`--settings FILE`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GivenSettings {
+    /// The validation.json they were read from, as given.
+    pub file: String,
+    /// The file's entry used for every test set (`evaluate --settings-of`), if one
+    /// entry served them all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub entry: Option<String>,
+    /// The sample the file's validation scored candidates on; `None` for a file
+    /// written before validation.json recorded it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample: Option<ValidationSample>,
+    /// The file's validation records of the entries used (what was searched and
+    /// chosen); empty when the file holds none.
+    #[serde(default)]
+    pub validation: Vec<Validation>,
 }
 
 /// One novelty set's figure per model (the area under the ROC curve, or the
@@ -129,6 +149,11 @@ pub struct Reproduction {
     pub table1: Vec<Table1Row>,
     /// Wall-clock seconds of the whole run (filled by the caller).
     pub seconds: f64,
+    /// Where the settings came from when they were given (`--settings`, filled by the
+    /// caller); `None` when this run validated them (or a library caller gave them
+    /// without saying).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub given_settings: Option<GivenSettings>,
     /// For an evaluation of a user's map sets (`graphspn evaluate`, filled by the
     /// caller): which set is which. `None` for a reproduction on the COLD buildings;
     /// the report then compares with the paper.

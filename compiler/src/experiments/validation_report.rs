@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use super::grid::ValidationGrid;
+use super::grid::{ValidationGrid, ValidationSample};
 
 /// `n` and the noun, plural unless `n` is 1: `1 round`, `3 rounds`.
 pub fn counted(n: usize, noun: &str) -> String {
@@ -15,7 +15,7 @@ pub fn counted(n: usize, noun: &str) -> String {
 /// building's) and the sample of each validation building (`grid`), saying so when
 /// that sample is smaller than the standard grid's (a smoke run such as `--tiny-grid`
 /// or `reproduce --quick`, not the protocol's search). Empty without a validation.
-pub fn search_summary(vals: &[super::validate::Validation], grid: &ValidationGrid) -> String {
+pub fn search_summary(vals: &[super::validate::Validation], sample: &ValidationSample) -> String {
     let Some(first) = vals.first() else {
         return String::new();
     };
@@ -26,21 +26,17 @@ pub fn search_summary(vals: &[super::validate::Validation], grid: &ValidationGri
             format!("{n} {m}")
         })
         .collect();
-    let levels: Vec<String> = grid
-        .levels
-        .iter()
-        .map(|l| format!("NL{}", l.get()))
-        .collect();
+    let levels: Vec<String> = sample.levels.iter().map(|l| format!("NL{l}")).collect();
     let standard = ValidationGrid::standard();
-    let smaller = grid.maps_per_building < standard.maps_per_building
-        || grid.levels.len() < standard.levels.len()
-        || grid.rounds < standard.rounds;
+    let smaller = sample.maps_per_building < standard.maps_per_building
+        || sample.levels.len() < standard.levels.len()
+        || sample.rounds < standard.rounds;
     format!(
         "The search: {} candidates, on {} × {} × {} per validation building{}.",
         counts.join(", "),
-        counted(grid.maps_per_building, "map"),
+        counted(sample.maps_per_building, "map"),
         levels.join(", "),
-        counted(grid.rounds, "round"),
+        counted(sample.rounds, "round"),
         if smaller {
             format!(
                 " — **a reduced search** (a smoke run such as `--tiny-grid` or `reproduce --quick`), not \
@@ -64,7 +60,7 @@ pub fn validation_markdown(
     let mut s = format!(
         "# Validation of every model's settings\n\nLeave-one-training-building-out, per \
          test building; the test building is never read. {} Run time {seconds:.1} s.\n\n",
-        search_summary(vals, grid)
+        search_summary(vals, &grid.sample())
     );
     s.push_str(&settings_table(
         vals.iter().map(|v| (v.test_building.as_str(), &v.chosen)),
