@@ -190,7 +190,11 @@ fn compile_writes_a_tree_mixture_module_and_reports_it() {
     );
     let src = std::fs::read_to_string(dir.path().join("fixed.rs")).unwrap();
     assert!(src.contains("FixedMatrices {") && src.contains("SoftF32"));
-    for flags in [["--strategy", "cover"], ["--decompositions", "d.json"]] {
+    // An existing file: a missing one is refused first, as every missing input is.
+    let decs = dir.path().join("d.json");
+    std::fs::write(&decs, "{}").unwrap();
+    let decs = decs.to_str().unwrap();
+    for flags in [["--strategy", "cover"], ["--decompositions", decs]] {
         let run = bin()
             .args(["compile", "--model"])
             .arg(demo("tree_model.json"))
