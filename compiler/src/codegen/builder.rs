@@ -450,6 +450,11 @@ impl Builder {
                 self.model.display()
             )));
         };
+        self.load_graphspn(model)
+    }
+
+    /// [`Builder::load`] with the GraphSPN model already read.
+    fn load_graphspn(&self, model: Model) -> Result<Inputs, BuildError> {
         let map = load_map(&self.map)?;
         self.check_classes(&model.classes, &map)?;
         self.check_decomposition_source()?;
@@ -475,7 +480,7 @@ impl Builder {
     /// spanning trees.
     pub fn load_any(&self) -> Result<AnyInputs, BuildError> {
         let model = match load_any_model(&self.model)? {
-            AnyModel::Graphspn(_) => return self.load().map(AnyInputs::Graphspn),
+            AnyModel::Graphspn(m) => return self.load_graphspn(m).map(AnyInputs::Graphspn),
             AnyModel::TreeMixture(m) => m,
         };
         if let Some(option) = self.graphspn_only {

@@ -365,7 +365,7 @@ fn report_markdown(
     );
     s.push_str(&accuracy_table(rep, cells, Experiment::Placeholders, paper));
     s.push_str(&paired_tables(rep, cells, Experiment::Placeholders));
-    s.push_str(&ceiling_section(rep));
+    s.push_str(&ceiling_section(rep, cells));
     if !rep.auc.is_empty() {
         let count = |set: NoveltySet, novel: bool| {
             rep.novelty

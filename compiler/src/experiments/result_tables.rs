@@ -7,8 +7,8 @@ use std::fmt::Write as _;
 use super::ceiling::CeilingMap;
 use super::models::{GRAPHSPN, MODELS, MRF_MODELS, OUR_MODELS, TREES};
 use super::results::{Experiment, Reproduction};
-use super::stats::{best_baseline, levels_of, per_map};
-use super::summary::{SummaryCell, building_rows, cell, shown};
+use super::stats::levels_of;
+use super::summary::{SummaryCell, building_rows, cell, find_cell, shown};
 
 /// The paper's Table 2 (placeholder accuracy, %): `(model, level, [Freiburg, Saarbrucken, Stockholm])`.
 pub const PAPER_TABLE2: [(&str, u8, [f64; 3]); 6] = [
@@ -130,7 +130,7 @@ pub(crate) fn paired_tables(rep: &Reproduction, cells: &[SummaryCell], e: Experi
 
 /// The placeholder ceiling ([`super::ceiling`]) beside the models' placeholder accuracy
 /// at the lowest and highest noise level.
-pub(crate) fn ceiling_section(rep: &Reproduction) -> String {
+pub(crate) fn ceiling_section(rep: &Reproduction, cells: &[SummaryCell]) -> String {
     if rep.ceiling.is_empty() {
         return String::new();
     }
@@ -167,14 +167,13 @@ pub(crate) fn ceiling_section(rep: &Reproduction) -> String {
     // A percentage, or a dash where nothing was measured (no placeholder).
     let pct = |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1}", 100.0 * x));
     let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
-    let cells = |b: Option<&str>| -> String {
+    // The models' means from the report's cells (the better tuned MRF is the cell's).
+    let models = |b: Option<&str>| -> String {
         columns
             .iter()
             .map(|&(l, k, _)| {
-                let k = k.unwrap_or_else(|| best_baseline(rep, b, Experiment::Placeholders, l));
-                pct(mean(&per_map(rep, b, Experiment::Placeholders, l, |g| {
-                    g.accuracy[k]
-                })))
+                let c = find_cell(cells, b, Experiment::Placeholders, l);
+                pct(c.and_then(|c| c.accuracy_of(k)).map(|i| i.mean))
             })
             .collect::<Vec<_>>()
             .join(" | ")
@@ -188,7 +187,7 @@ pub(crate) fn ceiling_section(rep: &Reproduction) -> String {
             c.placeholders,
             pct(c.one_hop),
             pct(c.two_hop),
-            cells(b),
+            models(b),
         );
     }
     if rep.ceiling.len() > 1 {
@@ -200,7 +199,7 @@ pub(crate) fn ceiling_section(rep: &Reproduction) -> String {
             rep.ceiling.iter().map(|c| c.placeholders).sum::<usize>(),
             pct(hop(|m| m.one_hop)),
             pct(hop(|m| m.two_hop)),
-            cells(None),
+            models(None),
         );
     }
     s

@@ -142,7 +142,19 @@ pub fn summarise(rep: &Reproduction) -> Vec<SummaryCell> {
     cells
 }
 
-/// The cell of one building (or all, `None`), experiment and level.
+/// The cell of one building (or all, `None`), experiment and level, if the run has it.
+pub(crate) fn find_cell<'a>(
+    cells: &'a [SummaryCell],
+    building: Option<&str>,
+    e: Experiment,
+    level: u8,
+) -> Option<&'a SummaryCell> {
+    cells
+        .iter()
+        .find(|c| c.building.as_deref() == building && c.experiment == e && c.level == level)
+}
+
+/// [`find_cell`] for a building row and level of the run.
 ///
 /// # Panics
 /// If [`summarise`] made no such cell (a level or building the run does not have).
@@ -152,8 +164,17 @@ pub(crate) fn cell<'a>(
     e: Experiment,
     level: u8,
 ) -> &'a SummaryCell {
-    cells
-        .iter()
-        .find(|c| c.building.as_deref() == building && c.experiment == e && c.level == level)
+    find_cell(cells, building, e, level)
         .expect("summarise makes a cell for every building row, experiment and level")
+}
+
+impl SummaryCell {
+    /// The accuracy of model `k`, or of the cell's better tuned MRF when `k` is `None`.
+    pub(crate) fn accuracy_of(&self, k: Option<usize>) -> Option<Interval> {
+        let k = k.or_else(|| {
+            let best = self.better_tuned_mrf.as_deref()?;
+            MODELS.iter().position(|m| *m == best)
+        })?;
+        self.accuracy[k]
+    }
 }

@@ -199,16 +199,10 @@ impl TopoMap {
                 self.classes.len()
             ));
         }
-        let mut edges: Vec<(usize, usize)> = self
-            .graph
-            .edge_indices()
-            .filter_map(|e| self.graph.edge_endpoints(e))
-            .map(|(a, b)| (a.index().min(b.index()), a.index().max(b.index())))
-            .collect();
+        let edges = self.edge_list();
         if let Some(&(a, _)) = edges.iter().find(|(a, b)| a == b) {
             return Err(format!("place {} has an edge to itself", places[a].id));
         }
-        edges.sort_unstable();
         if let Some(w) = edges.windows(2).find(|w| w[0] == w[1]) {
             return Err(format!(
                 "the edge between places {} and {} is there twice",
