@@ -77,7 +77,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // One line, each cause once (library errors already repeat their source).
-            eprintln!("error: {}", cli::common::error_chain(&e));
+            eprintln!("error: {}", cli::output::error_chain(&e));
             ExitCode::FAILURE
         }
     }

@@ -8,20 +8,20 @@
 //! After every step the generated binary compares the state's log-likelihood,
 //! marginals, one place's `marginal` and MPE value with the stateless functions on
 //! the state's evidence; every few steps it also writes the state's evidence and its
-//! answers, which the interpreter then checks ([`common::check_case`];
-//! [`common::trees::check_tree_case`] for tree mixtures: `TreeInstance` too). A long
+//! answers, which the interpreter then checks ([`harness::check_case`];
+//! [`harness::trees::check_tree_case`] for tree mixtures: `TreeInstance` too). A long
 //! run of 100,000 updates on the 230-place map (each family) checks that the cache does
 //! not drift.
-mod common;
+mod harness;
 
 use std::path::PathBuf;
 use std::process::Command;
 
-use common::trees::{TreeCase, check_tree_case};
-use common::{Case, Variant, build_crate_with, check_case, env_usize, stride};
 use graphspn::decompose::{DecompositionParams, decompose_best};
 use graphspn::learn::Model;
 use graphspn::treemix::{SpanningTrees, TreeMixture};
+use harness::trees::{TreeCase, check_tree_case};
+use harness::{Case, Variant, build_crate_with, check_case, env_usize, stride};
 
 /// Updates per sequence.
 const STEPS: usize = 1_000;

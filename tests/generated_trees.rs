@@ -9,16 +9,16 @@
 //!
 //! Scale up: `GRAPHSPN_ALL_MAPS=1`, `GRAPHSPN_DIFF_VECTORS=N` (vectors per COLD map).
 
-mod common;
+mod harness;
 
 use std::path::PathBuf;
 
-use common::trees::{TreeCase, check_tree_case};
-use common::{Variant, env_usize, in_process_answers};
 use graphspn::codegen::Builder;
 use graphspn::map::cold;
 use graphspn::treemix::{SpanningTrees, TreeMixture};
 use graphspn_generated::demo_floor_trees as floor;
+use harness::trees::{TreeCase, check_tree_case};
+use harness::{Variant, env_usize, in_process_answers};
 
 /// Evidence vectors per COLD map (the interpreter checks every fourth).
 const COLD_VECTORS: usize = 200;
@@ -135,5 +135,5 @@ fn cold_maps_match_tree_instance_and_interpreter() {
             factor_tables: true,
         });
     }
-    common::trees::tree_differential("tree_diff", &cases);
+    harness::trees::tree_differential("tree_diff", &cases);
 }

@@ -8,18 +8,18 @@
 //! - `GRAPHSPN_DIFF_VECTORS=N`: evidence vectors per map (default [`VECTORS`] on the
 //!   demo map, [`COLD_VECTORS`] on each COLD map).
 
-mod common;
+mod harness;
 
 use std::path::{Path, PathBuf};
 
-use common::{
-    Case, Variant, case_evidence, check_case, differential, env_usize, in_process_answers,
-};
 use graphspn::codegen::Builder;
 use graphspn::decompose::{DecompositionParams, decompose_best};
 use graphspn::learn::Model;
 use graphspn::map::cold;
 use graphspn_generated::demo_floor;
+use harness::{
+    Case, Variant, case_evidence, check_case, differential, env_usize, in_process_answers,
+};
 
 /// Largest COLD map compiled unless `GRAPHSPN_MAX_PLACES` lowers it: no cap by default.
 const MAX_PLACES: usize = usize::MAX;

@@ -6,9 +6,8 @@
 //! Scale up: `GRAPHSPN_FUZZ_STRUCTURES=5000` (built in batches of [`BATCH`] modules per
 //! crate), `GRAPHSPN_FUZZ_VECTORS=N` evidence vectors per structure.
 
-mod common;
+mod harness;
 
-use common::{Case, Variant, differential, env_usize};
 use graphspn::codegen::{Arithmetic, Precision, Vectorisation};
 use graphspn::decompose::synthetic::random_connected_map;
 use graphspn::decompose::{DecompositionParams, decompose_best};
@@ -17,6 +16,7 @@ use graphspn::map::ClassSet;
 use graphspn::spn::random::layered_spn;
 use graphspn::spn::{Node, Spn};
 use graphspn::template::Template;
+use harness::{Case, Variant, differential, env_usize};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -10,18 +10,18 @@
 //! Scale up: `GRAPHSPN_FUZZ_STRUCTURES=500 GRAPHSPN_FUZZ_VECTORS=200`.
 
 #[allow(dead_code)]
-#[path = "../compiler/tests/common/treemix.rs"]
+#[path = "../compiler/tests/harness/treemix.rs"]
 mod brute;
-mod common;
+mod harness;
 
-use common::trees::{TreeCase, tree_differential};
-use common::{Variant, env_usize};
 use graphspn::codegen::{Arithmetic, Precision, Vectorisation};
 use graphspn::family::ModelFamily;
 use graphspn::map::{ClassSet, Place, TopoMap};
 use graphspn::spn::Mixing;
 use graphspn::treemix::{SpanningTrees, TreeInstance, TreeMixture};
 use graphspn_runtime::__private::parallel_sweeps;
+use harness::trees::{TreeCase, tree_differential};
+use harness::{Variant, env_usize};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -11,10 +11,10 @@
 //! the real Freiburg + Saarbrucken maps give at most ~620 (training cost grows
 //! with the number of distinct tuples, not with the number of samples).
 
-#[path = "../tests/common/mod.rs"]
-mod common;
+#[path = "../tests/harness/mod.rs"]
+mod harness;
 
-use common::permutations;
+use harness::permutations;
 use std::hint::black_box;
 use std::time::Instant;
 

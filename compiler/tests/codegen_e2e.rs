@@ -2,14 +2,13 @@
 //! and compared with brute-force enumeration over all labellings (GraphSPN) or with
 //! `TreeInstance`, the exact host evaluator (tree mixtures).
 
-mod common;
+mod harness;
 
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
-use common::codegen::*;
 use graphspn_compiler::codegen::{
     CodegenOptions, Precision, Vectorisation, generate, generate_trees_with_report,
 };
@@ -19,6 +18,7 @@ use graphspn_compiler::map::{ClassId, TopoMap};
 use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
 use graphspn_compiler::treemix::{SpanningTrees, TreeInstance};
+use harness::codegen::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -243,7 +243,7 @@ pub fn build_and_run(name: &str, modules: &[(String, String)], input: &str) -> S
         ),
     )
     .unwrap();
-    common::temp_crate::use_workspace_cargo_config(
+    harness::temp_crate::use_workspace_cargo_config(
         &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."),
         dir.path(),
     );
@@ -455,8 +455,8 @@ struct TreeExpected {
 /// the generator's own tests running its tree code.)
 #[test]
 fn generated_tree_code_matches_the_tree_instance() {
-    use common::instance::tiny_map;
-    use common::treemix::random_model;
+    use harness::instance::tiny_map;
+    use harness::treemix::random_model;
     let mut modules = vec![];
     let mut input = String::new();
     let mut expected = vec![];

@@ -1,7 +1,7 @@
 //! The generator's report (`CodeReport`) on the shipped demo maps: the figures the
 //! README quotes and the layout properties they rest on.
 
-mod common;
+mod harness;
 
 use std::path::PathBuf;
 
@@ -494,9 +494,9 @@ fn demo_floor_report_figures_are_pinned() {
 /// from the node count (a value and an adjoint per node, plus spills), not from a plan.
 #[test]
 fn per_node_report_figures_are_pinned() {
-    use common::codegen::{decompose, map, model, random_spn};
     use graphspn_compiler::codegen::generate_with_report;
     use graphspn_compiler::template::Template;
+    use harness::codegen::{decompose, map, model, random_spn};
     use rand::SeedableRng;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let templates = vec![Template::three(), Template::pair(), Template::singleton()];
@@ -555,9 +555,9 @@ fn a_decompositions_file_gives_the_module_of_its_decompositions() {
 /// linear space because the other rows of its block cover that tuple.
 #[test]
 fn an_exact_zero_weight_leaves_its_floor_term_out() {
-    use common::codegen::{decompose, dense_model, map};
     use graphspn_compiler::codegen::generate_with_report;
     use graphspn_compiler::spn::Node;
+    use harness::codegen::{decompose, dense_model, map};
     let mut m = dense_model(3, false, 1, 7);
     let star = m.templates.iter().position(|t| t.num_nodes == 5).unwrap();
     // The Star's first sum mixes products of two variables' leaves: a lower block.

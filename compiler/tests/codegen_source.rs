@@ -1,8 +1,7 @@
 //! Properties of the generated source text: snapshot, determinism, forbidden constructs, errors.
 
-mod common;
+mod harness;
 
-use common::codegen::*;
 use graphspn_compiler::codegen::{
     CodegenError, CodegenOptions, Precision, Vectorisation, generate,
 };
@@ -13,6 +12,7 @@ use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::{ClassSet, MapFitError, TopoMap};
 use graphspn_compiler::spn::Node;
 use graphspn_compiler::template::Template;
+use harness::codegen::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

@@ -1,7 +1,7 @@
 //! The placeholder ceiling: an oracle that knows the explored places' classes and
 //! labels each placeholder by the statistics of the training maps.
 
-mod common;
+mod harness;
 
 use graphspn_compiler::experiments::ceiling::placeholder_ceiling;
 use graphspn_compiler::map::TopoMap;
@@ -16,7 +16,7 @@ fn path(a: u16, b: u16, c: u16, extra: Option<u16>) -> TopoMap {
     } else {
         3
     };
-    let mut m = common::codegen::map(n, 4, &edges);
+    let mut m = harness::codegen::map(n, 4, &edges);
     let classes = [Some(a), Some(b), Some(c), extra];
     for (i, w) in m.graph.node_weights_mut().enumerate() {
         w.class = classes[i];

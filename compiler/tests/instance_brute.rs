@@ -2,14 +2,14 @@
 //! log-likelihood of partial labellings and MPE equal what the definition
 //! P(y) = mean_d Π_components T(y_component) gives over all labellings.
 
-mod common;
+mod harness;
 
-use common::instance::{all_labellings, random_model, random_rows, tiny_map, value};
 use graphspn_compiler::decompose::Decomposition;
 use graphspn_compiler::instance::{Instance, InstanceModel, InstanceParams};
 use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::ClassId;
+use harness::instance::{all_labellings, random_model, random_rows, tiny_map, value};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

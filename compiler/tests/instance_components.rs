@@ -4,11 +4,10 @@
 //! answers after random update sequences equal a fresh evaluation bit for bit; growth
 //! follows `Instance::grow`.
 
-mod common;
+mod harness;
 
 use std::path::PathBuf;
 
-use common::instance::{classes, random_model, random_rows, tiny_map};
 use graphspn_compiler::decompose::synthetic::random_connected_map;
 use graphspn_compiler::instance::{
     ComponentInstance, Instance, InstanceModel, InstanceParams, InstanceQueryError, Mixing,
@@ -17,6 +16,7 @@ use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::learn::Model;
 use graphspn_compiler::map::{ClassId, TopoMap, cold};
 use graphspn_compiler::spn::Node;
+use harness::instance::{classes, random_model, random_rows, tiny_map};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

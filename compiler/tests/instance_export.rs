@@ -1,10 +1,10 @@
 //! Export of an instance: the JSON has every node, the dot file is well formed.
 
-mod common;
+mod harness;
 
-use common::instance::{random_model, tiny_map};
 use graphspn_compiler::instance::{Instance, InstanceParams};
 use graphspn_compiler::spn::Spn;
+use harness::instance::{random_model, tiny_map};
 
 #[test]
 fn json_has_every_node_and_dot_every_edge() {

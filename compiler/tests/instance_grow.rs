@@ -2,15 +2,15 @@
 //! gives the same marginals as a full rebuild with the same decompositions, while
 //! reusing the template copies of untouched components.
 
-mod common;
+mod harness;
 
 use std::collections::BTreeSet;
 
-use common::instance::{classes, random_model, random_rows};
 use graphspn_compiler::decompose::synthetic::random_connected_map;
 use graphspn_compiler::instance::{Instance, InstanceError, InstanceModel, InstanceParams};
 use graphspn_compiler::interpreter::Evidence;
 use graphspn_compiler::map::TopoMap;
+use harness::instance::{classes, random_model, random_rows};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

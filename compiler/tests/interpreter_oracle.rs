@@ -5,12 +5,12 @@
 //! `case_seed` that fully determines the SPN, evidence and fixed classes, and every
 //! failure message prints it, so `check_case(case_seed, selective)` replays it.
 
-mod common;
+mod harness;
 
-use common::all_assignments;
 use graphspn_compiler::interpreter::{BATCH, Evaluator, Evidence, InferenceError};
 use graphspn_compiler::runtime::EvidenceError;
 use graphspn_compiler::spn::{Node, RandomSpnParams, Spn, random_spn};
+use harness::all_assignments;
 use proptest::prelude::*;
 use proptest::test_runner::{RngAlgorithm, RngSeed};
 use rand::{Rng, SeedableRng};

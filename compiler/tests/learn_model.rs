@@ -1,8 +1,7 @@
 //! The model file: round trip, determinism, format check, error positions.
 
-mod common;
+mod harness;
 
-use common::learn::*;
 use graphspn_compiler::learn::model::MODEL_FORMAT;
 use graphspn_compiler::learn::{
     DenseParams, Model, ModelFileError, Progress, TrainingSettings, dense_structure,
@@ -11,6 +10,7 @@ use graphspn_compiler::learn::{
 use graphspn_compiler::map::ClassSet;
 use graphspn_compiler::spn::Node;
 use graphspn_compiler::template::Template;
+use harness::learn::*;
 
 fn small_model() -> Model {
     let settings = TrainingSettings {
@@ -230,7 +230,7 @@ fn settings_record_a_temperature_only_when_it_is_not_one() {
 #[test]
 fn template_samples_add_reverses_only_when_asked() {
     use graphspn_compiler::learn::template_samples;
-    let mut m = common::codegen::map(
+    let mut m = harness::codegen::map(
         7,
         3,
         &[(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 6), (1, 4)],
@@ -291,7 +291,7 @@ fn smoothing_runs_linearly_from_start_to_end() {
 fn a_template_matching_nowhere_is_named() {
     use graphspn_compiler::learn::{Progress, TrainModelError, train_model};
     // A path: no place has four neighbours, so no Star fits.
-    let mut m = common::codegen::map(4, 3, &[(0, 1), (1, 2), (2, 3)]);
+    let mut m = harness::codegen::map(4, 3, &[(0, 1), (1, 2), (2, 3)]);
     for (i, p) in m.graph.node_weights_mut().enumerate() {
         p.class = Some((i % 3) as u16);
     }

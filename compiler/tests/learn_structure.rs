@@ -1,17 +1,17 @@
 //! Dense structure generation: sizes with the authors' settings, validity
 //! (completeness, decomposability, normalisation), determinism, symmetry closure.
 
-mod common;
+mod harness;
 
 use std::collections::BTreeSet;
 
-use common::learn::*;
 use graphspn_compiler::learn::structure::{StructureError, num_weights};
 use graphspn_compiler::learn::symmetry::SymmetryError;
 use graphspn_compiler::learn::{
     DenseParams, SplitChoice, dense_structure, edge_orbits, symmetric_dense_structure, uniform_spn,
 };
 use graphspn_compiler::spn::{Node, Spn};
+use harness::learn::*;
 
 /// Scopes of all nodes; asserts completeness, decomposability, topological
 /// order and normalised non-negative weights.

@@ -2,10 +2,10 @@
 //! template's automorphisms for every full assignment, whatever the data and
 //! seeds; with `Symmetry::Augment` the full tables (Pair, Three) are too.
 
-mod common;
+mod harness;
 
-use common::learn::*;
 use graphspn_compiler::learn::{Progress, Symmetry, TrainingSettings, learn_template_spn};
+use harness::learn::*;
 use proptest::prelude::*;
 
 proptest! {

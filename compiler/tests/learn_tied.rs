@@ -2,14 +2,14 @@
 //! symmetric tables, tied weights stay bit-identical, and tied EM equals untied EM on
 //! the augmented data (its closed-form reference).
 
-mod common;
+mod harness;
 
-use common::learn::*;
 use graphspn_compiler::learn::{
     DenseParams, EmKind, Progress, Symmetry, TrainingSettings, augment_with_automorphisms,
     dense_structure, edge_orbits, learn_template_spn, symmetric_dense_structure, train, train_tied,
 };
 use graphspn_compiler::spn::Node;
+use harness::learn::*;
 
 #[test]
 fn augmentation_makes_tables_exactly_symmetric() {

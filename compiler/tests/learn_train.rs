@@ -1,9 +1,8 @@
 //! EM training: exact M-step on full tables, monotone objective, convergence to
 //! the sampling distribution, pruning (symmetry and tying: `learn_tied.rs`).
 
-mod common;
+mod harness;
 
-use common::learn::*;
 use graphspn_compiler::learn::structure::num_weights;
 use graphspn_compiler::learn::train::{dedupe, log_likelihood, log_likelihoods, prune};
 use graphspn_compiler::learn::{
@@ -11,6 +10,7 @@ use graphspn_compiler::learn::{
     dense_structure, train,
 };
 use graphspn_compiler::spn::Node;
+use harness::learn::*;
 
 fn fixed(s: f64, epochs: usize, em: EmKind) -> TrainingSettings {
     TrainingSettings {

@@ -9,16 +9,11 @@
 //! `GRAPHSPN_UPDATE_FIXTURES=1 cargo test -p graphspn-compiler --test runtime_fixtures`
 //! rewrites them.
 
-mod common;
+mod harness;
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use common::codegen::{
-    decompose, dense_model_with, grid, map, model, oracle, random_spn, randomise_weights, tiny,
-};
-use common::instance::tiny_map;
-use common::treemix::random_model;
 use graphspn_compiler::codegen::{
     Arithmetic, CodegenOptions, Precision, Vectorisation, generate, generate_trees_with_report,
 };
@@ -29,6 +24,11 @@ use graphspn_compiler::map::{ClassId, TopoMap};
 use graphspn_compiler::spn::{Mixing, Node};
 use graphspn_compiler::template::Template;
 use graphspn_compiler::treemix::{SpanningTrees, TreeInstance, TreeMixture};
+use harness::codegen::{
+    decompose, dense_model_with, grid, map, model, oracle, random_spn, randomise_weights, tiny,
+};
+use harness::instance::tiny_map;
+use harness::treemix::random_model;
 use petgraph::graph::NodeIndex;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

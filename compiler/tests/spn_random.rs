@@ -1,11 +1,11 @@
 //! The random SPN generator: valid for many seeds and parameters, deterministic,
 //! selective when asked, and actually produces DAG sharing and exact-zero weights.
 
-mod common;
+mod harness;
 
-use common::all_assignments;
 use graphspn_compiler::spn::random::{RandomSpnParams, layered_spn, random_spn};
 use graphspn_compiler::spn::{Node, Spn};
+use harness::all_assignments;
 
 /// For one full assignment: does each node's support contain it (weights ignored)?
 fn supports(spn: &Spn, x: &[u32]) -> Vec<bool> {

@@ -2,10 +2,8 @@
 //! explicit instance SPN against brute-force enumeration on maps of at most 8 places,
 //! for every query; the forests (spanning, covering, centred); the model file.
 
-mod common;
+mod harness;
 
-use common::instance::tiny_map;
-use common::treemix::{oracle, random_model};
 use graphspn_compiler::family::{AnyModel, ModelFamily};
 use graphspn_compiler::interpreter::{Evaluator, Evidence};
 use graphspn_compiler::map::{ClassId, TopoMap, cold};
@@ -13,6 +11,8 @@ use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::treemix::{
     SpanningTrees, TreeInstance, TreeMixture, TreeTraining, instance_spn, train_tree_mixture,
 };
+use harness::instance::tiny_map;
+use harness::treemix::{oracle, random_model};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -15,7 +15,7 @@ use std::path::Path;
 use anyhow::{Result, bail};
 use graphspn_compiler::map::MapError;
 
-use super::common::{LoadedMap, read_map_limited};
+use super::map_input::{LoadedMap, read_map_limited};
 
 /// Largest memory (bytes) a host command may plan to use before it refuses with an
 /// estimate: 4 GiB.
@@ -194,7 +194,7 @@ impl Budget {
     }
 }
 
-/// Reads the map at `resolved` (see [`super::common::declare_map`]) for `budget`: a map
+/// Reads the map at `resolved` (see [`super::map_input::declare_map`]) for `budget`: a map
 /// with more places than the budget allows is refused while it is read, before its
 /// graph is built. `flag` names the map in errors (`--map`).
 pub fn read_map_within(flag: &str, resolved: &Path, budget: &Budget) -> Result<LoadedMap> {

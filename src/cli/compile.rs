@@ -14,10 +14,9 @@ use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
 
 use super::budget::{Budget, Work, read_map_within};
-use super::common::{
-    any_map_fits, count_decompositions_file, data_dir, declare_map, decompositions_for,
-    flag_domain, load_any_model, parse_strategy,
-};
+use super::flag_checks::{flag_domain, parse_strategy};
+use super::map_input::{any_map_fits, data_dir, declare_map};
+use super::model_input::{count_decompositions_file, decompositions_for, load_any_model};
 
 /// Largest map `compile` takes: the generator's limit (its tables index places with
 /// `u16`), checked here while the map is read, before any work.

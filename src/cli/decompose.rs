@@ -7,10 +7,9 @@ use anyhow::Result;
 use clap::Args;
 
 use super::budget::{Budget, Work, read_map_within};
-use super::common::{
-    check_decomposition_count, data_dir, declare_map, decompositions_for, load_model, map_fits,
-    parse_strategy,
-};
+use super::flag_checks::{check_decomposition_count, parse_strategy};
+use super::map_input::{data_dir, declare_map, map_fits};
+use super::model_input::{decompositions_for, load_model};
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
 

@@ -12,7 +12,8 @@ use graphspn_compiler::experiments::reproduce::run;
 use graphspn_compiler::experiments::sets::{Evaluation, MapSet, NameRequest, SetRole, name_sets};
 use graphspn_compiler::map::{TopoMap, cold, load_map_set_report, map_set_name, shown_class_names};
 
-use super::common::{flag_domain, require_data_dir};
+use super::flag_checks::flag_domain;
+use super::map_input::require_data_dir;
 use super::output::{Outputs, write_folder};
 use super::reproduce::{ProtocolOptions, RunOptions, read_settings};
 

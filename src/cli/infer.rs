@@ -17,12 +17,14 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::budget::{Budget, Work, candidates, read_map_within};
-use super::common::{
-    any_map_fits, check_decomposition_count, component_instance_of, count_decompositions_file,
-    data_dir, declare_map, decompositions_for, flag_domain, load_any_model, parse_strategy,
-    refuse_graphspn_flags,
-};
 use super::evidence::read_evidence;
+use super::flag_checks::{
+    check_decomposition_count, flag_domain, parse_strategy, refuse_graphspn_flags,
+};
+use super::map_input::{any_map_fits, data_dir, declare_map};
+use super::model_input::{
+    component_instance_of, count_decompositions_file, decompositions_for, load_any_model,
+};
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
 use graphspn_compiler::domain;
@@ -363,7 +365,7 @@ pub fn run(args: InferArgs) -> Result<()> {
             p.display()
         );
     } else {
-        super::common::write_stdout(&text)?;
+        super::output::write_stdout(&text)?;
     }
     if let Some(p) = &args.svg {
         eprintln!("wrote {}", p.display());

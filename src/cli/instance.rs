@@ -7,10 +7,10 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 
 use super::budget::{Budget, Work, read_map_within};
-use super::common::{
-    check_decomposition_count, count_decompositions_file, data_dir, declare_map,
-    decompositions_for, instance_of, load_any_model, map_fits, parse_strategy,
-    refuse_graphspn_flags,
+use super::flag_checks::{check_decomposition_count, parse_strategy, refuse_graphspn_flags};
+use super::map_input::{data_dir, declare_map, map_fits};
+use super::model_input::{
+    count_decompositions_file, decompositions_for, instance_of, load_any_model,
 };
 use super::output::{Outputs, emit};
 

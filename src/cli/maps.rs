@@ -14,9 +14,10 @@ use graphspn_compiler::treemix::SpanningTrees;
 
 use graphspn_compiler::domain;
 
-use super::common::{
-    data_dir, declare_map, flag_domain, load_any_model, read_map, require_data_dir, write_stdout,
-};
+use super::flag_checks::flag_domain;
+use super::map_input::{data_dir, declare_map, read_map, require_data_dir};
+use super::model_input::load_any_model;
+use super::output::write_stdout;
 use super::output::{Outputs, write_files};
 
 fn synthetic(flag: &str, places: usize, seed: u64) -> Result<TopoMap> {

@@ -588,7 +588,7 @@ fn default_folder_permissions(dir: &Path) -> Result<std::fs::Permissions> {
 pub fn emit(path: Option<&Path>, text: &str) -> Result<()> {
     match path {
         Some(p) => write_files(&[(p, text.as_bytes())]),
-        None => super::common::write_stdout(text),
+        None => write_stdout(text),
     }
 }
 
@@ -698,4 +698,31 @@ pub fn write_folder(out: &Path, make: impl FnOnce(&Path) -> Result<()>) -> Resul
         let _ = d.sync_all();
     }
     Ok(out.to_path_buf())
+}
+
+/// Writes `text` to standard output; a closed pipe (e.g. `| head`) is not an error.
+pub fn write_stdout(text: &str) -> Result<()> {
+    use std::io::Write;
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => Ok(r.context("writing to standard output")?),
+    }
+}
+
+/// An error and its causes on one line, each cause once: a cause whose text the
+/// line already holds (library errors repeat their source in their message) is
+/// skipped.
+pub fn error_chain(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let msg = cause.to_string();
+        if line.contains(&msg) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&msg);
+    }
+    line
 }

@@ -23,7 +23,8 @@ use graphspn_compiler::learn::TrainingSettings;
 use graphspn_compiler::mrf::Normalisation;
 use std::collections::BTreeMap;
 
-use super::common::{check_buildings, flag_domain, flag_error, require_data_dir};
+use super::flag_checks::{flag_domain, flag_error};
+use super::map_input::{check_buildings, require_data_dir};
 use super::output::{Outputs, write_folder};
 
 /// Arguments of `graphspn reproduce`.

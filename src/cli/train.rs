@@ -12,7 +12,8 @@ use graphspn_compiler::spn::Mixing;
 use graphspn_compiler::template::Template;
 use graphspn_compiler::treemix::{TreeTraining, train_tree_mixture};
 
-use super::common::{check_buildings, flag_error, load_buildings, require_data_dir};
+use super::flag_checks::flag_error;
+use super::map_input::{check_buildings, load_buildings, require_data_dir};
 use super::output::{Outputs, write_files};
 
 /// Arguments of `graphspn train`.

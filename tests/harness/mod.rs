@@ -700,6 +700,6 @@ fn check_batch(
         }
     }
 }
-#[path = "../../compiler/tests/common/temp_crate.rs"]
+#[path = "../../compiler/tests/harness/temp_crate.rs"]
 mod temp_crate;
 pub mod trees;

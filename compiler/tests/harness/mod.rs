@@ -2,7 +2,7 @@
 //! brute-force oracles (here), and per area [`codegen`] (fixtures and the brute-force
 //! oracle of the generated code), [`instance`] (small random models, maps, evidence)
 //! and [`learn`] (automorphism groups, a brute-force SPN evaluator, a synthetic
-//! sampler); [`temp_crate`] sets up the temporary crates of generated code. Test files include it with `mod common;`, the benches with `#[path]`.
+//! sampler); [`temp_crate`] sets up the temporary crates of generated code. Test files include it with `mod harness;`, the benches with `#[path]`.
 #![allow(dead_code)]
 
 pub mod codegen;
