@@ -47,6 +47,7 @@ pub mod interpreter;
 pub mod json_error;
 pub mod learn;
 pub mod map;
+pub mod model_file;
 /// *(host)*
 #[cfg(feature = "host")]
 pub mod mrf;

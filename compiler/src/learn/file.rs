@@ -5,123 +5,22 @@
 //! serde_json's exact float parser (`float_roundtrip`), so every `f64` survives a
 //! save/load cycle bit for bit.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 
 use super::model::{MODEL_FORMAT, Model};
 use super::settings::TrainingSettings;
-use crate::family::{ModelFamily, family_of};
+use crate::model_file::parse_error;
+use crate::model_file::{ModelFamily, family_of};
+pub use crate::model_file::{ModelFileError, TemplateSpnError};
 use crate::spn::validate::WEIGHT_SUM_TOLERANCE;
-use crate::spn::{Node, NodeId, Spn, SpnError};
+use crate::spn::{Node, Spn};
 use crate::template::Template;
-
-/// Why a model file could not be read or written.
-#[derive(Debug, thiserror::Error)]
-pub enum ModelFileError {
-    /// Reading or writing the file failed.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// Not valid JSON, or not a model.
-    #[error("{source_name}:{line}:{column}: {message}")]
-    Parse {
-        /// File name (or `<string>`).
-        source_name: String,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What is wrong.
-        message: String,
-    },
-    /// The `format` field is missing or not one this version reads.
-    #[error(
-        "{source_name}: unsupported model format {found}; this version of graphspn reads format {expected} (re-train or convert the model)"
-    )]
-    UnsupportedFormat {
-        /// File name (or `<string>`).
-        source_name: String,
-        /// The `format` value found (`missing` if absent).
-        found: String,
-        /// [`MODEL_FORMAT`].
-        expected: u32,
-    },
-    /// A template SPN is malformed (see [`check_template_spn`]).
-    #[error("{source_name}: template {template:?} (SPN {index}): {source}")]
-    TemplateSpn {
-        /// File name (or `<string>`).
-        source_name: String,
-        /// The template's name.
-        template: String,
-        /// Position of the template (and its SPN) in the model.
-        index: usize,
-        /// What is wrong, naming the node (boxed: keeps the error small).
-        source: Box<TemplateSpnError>,
-    },
-    /// The model is inconsistent or holds a value JSON cannot represent.
-    #[error("{source_name}: {message}")]
-    Invalid {
-        /// File name (or `<string>`).
-        source_name: String,
-        /// What is wrong, naming the SPN and node.
-        message: String,
-    },
-}
 
 #[derive(Deserialize)]
 struct Probe {
     format: Option<serde_json::Value>,
-}
-
-/// A model file that is not valid JSON of the expected shape, at its position.
-pub(crate) fn parse_error(source_name: &str, e: serde_json::Error) -> ModelFileError {
-    ModelFileError::Parse {
-        source_name: source_name.to_string(),
-        line: e.line(),
-        column: e.column(),
-        message: crate::json_error::json_message(&e),
-    }
-}
-
-/// What is wrong with one template SPN of a model ([`check_template_spn`]).
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum TemplateSpnError {
-    /// The SPN's variables do not match the template's nodes.
-    #[error("the SPN has {found} variables, the template has {expected} nodes")]
-    VariableCount {
-        /// Variables of the SPN.
-        found: usize,
-        /// Nodes of the template.
-        expected: usize,
-    },
-    /// A variable has another number of classes than the model.
-    #[error("variable {var} has {found} classes, the model has {expected}")]
-    ClassCount {
-        /// The variable.
-        var: usize,
-        /// Its classes.
-        found: u32,
-        /// Classes of the model.
-        expected: usize,
-    },
-    /// A structural error: ids, order, weights, completeness, decomposability.
-    #[error(transparent)]
-    Structure(#[from] SpnError),
-}
-
-impl TemplateSpnError {
-    /// The SPN node the error is about, when there is one.
-    pub fn node(&self) -> Option<NodeId> {
-        match self {
-            TemplateSpnError::Structure(e) => e.node(),
-            _ => None,
-        }
-    }
 }
 
 /// The one check every path applies to a template SPN (`Model::load`, `infer`,

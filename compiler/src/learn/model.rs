@@ -2,8 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::family::ModelFamily;
 use crate::map::ClassSet;
+use crate::model_file::ModelFamily;
 use crate::spn::Spn;
 use crate::template::Template;
 

@@ -5,10 +5,10 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::family::{ModelFamily, family_of, read};
 use crate::learn::ModelFileError;
 use crate::learn::model::MODEL_FORMAT;
 use crate::map::ClassSet;
+use crate::model_file::{ModelFamily, family_of, read};
 use crate::spn::Mixing;
 
 /// Largest evidence exponent a model may hold.
@@ -138,7 +138,7 @@ impl TreeMixture {
             });
         }
         let model: TreeMixture = serde_json::from_str(text)
-            .map_err(|e| crate::learn::file::parse_error(source_name, e))?;
+            .map_err(|e| crate::model_file::parse_error(source_name, e))?;
         model.check(source_name)?;
         Ok(model)
     }
