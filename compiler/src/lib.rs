@@ -14,6 +14,9 @@
 //! | [`learn`] | template SPN structure generation and EM training; the model file |
 //! | [`treemix`] | tree mixtures: an exact mixture of edge-covering spanning trees (the second model family) |
 //! | [`family`] | the model families and the loader that reads a model file of either |
+//! | [`model_file`] | what both families' model files share: the `family` field, the error type, parse errors |
+//! | [`inputs`] | the one check that a GraphSPN model, a map and decompositions fit together |
+//! | [`json_error`] | JSON errors as one message with their position |
 //! | [`instance`] | the instance GraphSPN of a map (the paper's Alg. 1) |
 //! | [`codegen`] | straight-line `no_std` Rust for a known map, and the `build.rs` builder |
 //! | [`mrf`] | Markov random field baselines with loopy belief propagation |
