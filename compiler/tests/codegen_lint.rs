@@ -1,7 +1,7 @@
 //! Source rules of the code generator (`compiler/src/codegen`), checked on its text:
 //! - no Rust code is assembled as strings: every `format!` / `write!` / `writeln!` /
 //!   `format_args!` / `push_str` is either an error message (`what: format!(..)`,
-//!   `BadOption(format!(..))`) or marked `// lint: <why>` on the line above (the
+//!   `BadOption(format!(..))`, `Unsupported(format!(..))`) or marked `// lint: <why>` on the line above (the
 //!   spelling of one numeric literal, the `@generated` comment line, a file name);
 //! - the emitters use `quote!`;
 //! - no function is longer than 100 lines.
@@ -52,7 +52,12 @@ const TEXT_MACROS: [&str; 5] = [
     "format_args!(",
     "push_str(",
 ];
-const ERROR_MESSAGES: [&str; 3] = ["what: format!(", "BadOption(format!(", "Internal(format!("];
+const ERROR_MESSAGES: [&str; 4] = [
+    "what: format!(",
+    "BadOption(format!(",
+    "Unsupported(format!(",
+    "Internal(format!(",
+];
 
 #[test]
 fn no_rust_code_assembled_as_strings() {

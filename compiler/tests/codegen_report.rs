@@ -648,3 +648,25 @@ fn size_constants_count_the_compiled_model() {
         assert_eq!(usize_constant(&src, "NUM_COMPONENTS"), trees * n, "{v:?}");
     }
 }
+
+/// A tree mixture with one class, or more than 256, is refused as a model the
+/// generator does not compile (not as a bad option), pointing to the interpreter.
+#[test]
+fn tree_mixtures_outside_the_compiled_class_range_are_unsupported() {
+    use graphspn_compiler::codegen::CodegenError;
+    use graphspn_compiler::spn::Mixing;
+    for c in [1, 257] {
+        let model = harness::treemix::random_model(c, 2, 1, Mixing::Average, 3);
+        let map = harness::instance::tiny_map(4, c, 3);
+        let forests = SpanningTrees::covering(&map, 2, 0).unwrap();
+        let err = generate_trees_with_report(&model, &map, &forests, &CodegenOptions::default())
+            .unwrap_err();
+        assert!(matches!(err, CodegenError::Unsupported(_)), "{c}: {err}");
+        assert!(
+            err.to_string().contains(&format!(
+                "the model cannot be compiled: a tree mixture is compiled for 2 to 256 classes, the model has {c}"
+            )),
+            "{err}"
+        );
+    }
+}

@@ -56,13 +56,17 @@ pub trait CompiledMap {
     const STACK_BYTES_STATE: usize;
     /// Bytes of one [`CompiledMap::State`].
     const STATE_BYTES: usize;
-    /// Multiply(-add)s of one `log_likelihood` call.
+    /// Multiply(-add)s of one `log_likelihood` call. Every `MACS_*` counts the code's
+    /// own operations: lane-vector operations when `LANES > 1` (each the work of up to
+    /// `LANES` scalar ones), so a scalar and a SIMD build of one map give different
+    /// figures.
     const MACS_LOG_LIKELIHOOD: usize;
-    /// Multiply(-add)s of one `marginals` call.
+    /// Multiply(-add)s of one `marginals` call (lane-vector operations when `LANES > 1`).
     const MACS_MARGINALS: usize;
-    /// Multiply(-add)s of one `mpe` call.
+    /// Multiply(-add)s of one `mpe` call (lane-vector operations when `LANES > 1`).
     const MACS_MPE: usize;
-    /// Worst-case multiply(-add)s of one state update plus state marginals.
+    /// Worst-case multiply(-add)s of one state update plus state marginals (lane-vector
+    /// operations when `LANES > 1`).
     const MACS_OBSERVE_MARGINALS: usize;
     /// The streaming state of this map (see the generated `State`).
     type State;
@@ -96,7 +100,9 @@ pub trait CompiledMap {
     ) -> Result<(), EvidenceError>;
 
     /// Streaming: fuses an observation into the place's row (element-wise product,
-    /// renormalised) and updates the cache.
+    /// kept per class as a mantissa and a binary exponent: one rounding per observation
+    /// and class, no underflow; the row inference reads is that product scaled by a
+    /// power of two) and updates the cache.
     fn observe(s: &mut Self::State, place: usize, row: &Self::Row) -> Result<(), EvidenceError>;
 
     /// Streaming: removes the evidence of a place (row of ones) and updates the cache.

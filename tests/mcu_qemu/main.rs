@@ -170,6 +170,7 @@ fn firmware_on_qemu_matches_host_and_interpreter_within_stack_bounds() {
             .min()
             .unwrap_or(0);
         assert_no_state_image(&elf(target, "release"), smallest, target);
+        check_state_bytes(target, r);
     }
     let hosts = [
         host_answers!(demo_floor, 0),

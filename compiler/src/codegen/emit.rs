@@ -147,12 +147,6 @@ impl Fragment for Ident {
     }
 }
 
-impl<T: ToTokens + ?Sized> Fragment for &T {
-    fn push_to(self, out: &mut TokenStream) {
-        self.to_tokens(out);
-    }
-}
-
 /// `items` separated by `sep` (e.g. `a * b * c` with `quote!(*)`).
 pub fn join<I>(items: I, sep: &TokenStream) -> TokenStream
 where

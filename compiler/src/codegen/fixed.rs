@@ -291,6 +291,69 @@ mod tests {
         }
     }
 
+    /// `AtOnes` is the template's value and its variables' adjoints at ones whatever the
+    /// weights: on the demo Star with every sum's weights scaled apart (so no vector is
+    /// 1 at ones, as in a normalised template, where products and quotients of values
+    /// agree) against a direct evaluation of the SPN — `T` at ones, and `∂T/∂α_v,i` =
+    /// `T` with row `v` the unit row `e_i` (`T` is linear in each row).
+    #[test]
+    fn values_and_adjoints_at_ones_of_an_unnormalised_template() {
+        use crate::spn::Node;
+        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let model = crate::learn::Model::load(dir.join("../generated/demo/model.json")).unwrap();
+        let mut spn = model.spns[0].clone();
+        let mut scale = 0.0;
+        for node in &mut spn.nodes {
+            if let Node::Sum { weights, .. } = node {
+                scale += 0.37;
+                for w in weights.iter_mut() {
+                    *w *= 1.3 + (scale % 1.0);
+                }
+            }
+        }
+        let c = model.classes.len();
+        let plan = crate::codegen::kernels::plan(&spn, c).expect("the Star has blocks");
+        let eval = |row_of: &dyn Fn(usize, usize) -> f64| {
+            let mut v: Vec<f64> = Vec::with_capacity(spn.nodes.len());
+            for node in &spn.nodes {
+                let x = match node {
+                    Node::Leaf { var, class } => row_of(*var as usize, *class as usize),
+                    Node::Sum { children, weights } => children
+                        .iter()
+                        .zip(weights)
+                        .map(|(&ch, w)| w * v[ch as usize])
+                        .sum(),
+                    Node::Product { children } => {
+                        children.iter().map(|&ch| v[ch as usize]).product()
+                    }
+                };
+                v.push(x);
+            }
+            v[spn.root as usize]
+        };
+        let o = AtOnes::of(&plan);
+        let root = o.value[plan.n + plan.root.0][plan.root.1];
+        let want = eval(&|_, _| 1.0);
+        assert!(
+            (want - 1.0).abs() > 0.1,
+            "the scaled template is not 1 at ones"
+        );
+        assert!(
+            (root - want).abs() <= 1e-9 * want,
+            "root {root}, SPN {want}"
+        );
+        for v in 0..plan.n {
+            for i in 0..c {
+                let want = eval(&|var, class| if var != v || class == i { 1.0 } else { 0.0 });
+                let got = o.adjoint[v][i];
+                assert!(
+                    (got - want).abs() <= 1e-9 * want.max(1e-12),
+                    "variable {v} class {i}: {got}, SPN {want}"
+                );
+            }
+        }
+    }
+
     /// A value is kept at `E·2^(REL_BITS − 32)`; a posterior function's result at the
     /// larger of its own `E·2^(POST_BITS − 32)` and the value's threshold halved (its
     /// value, from the same sweep, within `2^(1 − REL_BITS)` of itself); saturating.

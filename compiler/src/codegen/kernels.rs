@@ -280,4 +280,39 @@ mod tests {
         assert_eq!(p.blocks.len(), 7);
         assert_eq!(p.blocks.last().unwrap().segments.len(), 3);
     }
+
+    /// A segment of more than `MAX_ARITY` vectors is not a block, even when its tuples
+    /// are complete: the root of 16 products of four two-class variables.
+    #[test]
+    fn segments_past_the_arity_limit_are_refused() {
+        let mut b = crate::spn::SpnBuilder::new(vec![2; 4]);
+        let products: Vec<NodeId> = (0..16u32)
+            .map(|t| {
+                let leaves = (0..4).map(|v| b.add_leaf(v, (t >> v) & 1)).collect();
+                b.add_product(leaves)
+            })
+            .collect();
+        let root = b.add_sum(products, vec![1.0 / 16.0; 16]);
+        let spn = b.finish_normalised(root).unwrap();
+        assert_eq!(MAX_ARITY, 3);
+        assert!(plan(&spn, 2).is_none());
+    }
+
+    /// A sum whose child is a sum below a product is planned: every sum of a valid SPN
+    /// is reachable, the sum below the product's sum included (the root mixes
+    /// `S1 × Y1`, where `S1` is a one-child sum over `S2`, the sum over `Y0`'s leaves).
+    #[test]
+    fn a_sum_below_a_sum_below_a_product_is_planned() {
+        let mut b = crate::spn::SpnBuilder::new(vec![2, 2]);
+        let (y0a, y0b) = (b.add_leaf(0, 0), b.add_leaf(0, 1));
+        let s2 = b.add_sum(vec![y0a, y0b], vec![0.3, 0.7]);
+        let s1 = b.add_sum(vec![s2], vec![1.0]);
+        let (y1a, y1b) = (b.add_leaf(1, 0), b.add_leaf(1, 1));
+        let pa = b.add_product(vec![s1, y1a]);
+        let pb = b.add_product(vec![s1, y1b]);
+        let root = b.add_sum(vec![pa, pb], vec![0.4, 0.6]);
+        let spn = b.finish_normalised(root).unwrap();
+        let p = plan(&spn, 2).expect("a block structure");
+        assert_eq!(p.blocks.len(), 3, "S2, S1 and the root");
+    }
 }

@@ -226,6 +226,10 @@ pub enum CodegenError {
     /// The option values are unusable.
     #[error("bad option: {0}")]
     BadOption(String),
+    /// The model is outside what the generator compiles (e.g. a tree mixture with one
+    /// class or more than 256); the interpreter still evaluates it.
+    #[error("the model cannot be compiled: {0}")]
+    Unsupported(String),
     /// The generated tokens do not form a Rust file (a bug in the generator).
     #[error("internal error: generated code does not parse: {0}")]
     Internal(String),

@@ -86,8 +86,15 @@ impl CodeReport {
     pub(super) fn check_budget(&self, options: &CodegenOptions) -> Result<(), CodegenError> {
         let worst = self.worst_stack();
         if worst > options.stack_budget() {
+            // Scalar code's figures are bounds; SIMD code's are estimates (its frames
+            // depend on the target features it is built with).
+            let needs = if self.lanes > 1 {
+                "is estimated to need"
+            } else {
+                "needs up to"
+            };
             return Err(CodegenError::BadOption(format!(
-                "the generated code needs up to {worst} bytes of stack per call, more than the budget of {} bytes (raise it with `max_stack_bytes`, `--max-stack-bytes` of `graphspn compile`)",
+                "the generated code {needs} {worst} bytes of stack per call, more than the budget of {} bytes (raise it with `max_stack_bytes`, `--max-stack-bytes` of `graphspn compile`)",
                 options.stack_budget()
             )));
         }
@@ -199,11 +206,12 @@ pub(super) fn constants_and_types(s: &Surface) -> TokenStream {
         pub const STACK_BYTES_STATE: usize = #ss;
         /// Bytes of one [`State`].
         pub const STATE_BYTES: usize = core::mem::size_of::<State>();
-        /// Multiply(-add)s of one `log_likelihood` call (vector operations when `LANES > 1`).
+        /// Multiply(-add)s of one `log_likelihood` call, like every `MACS_*` in the code's
+        /// own operations: lane vectors when `LANES > 1` (scalar and SIMD builds differ).
         pub const MACS_LOG_LIKELIHOOD: usize = #ml;
-        /// Multiply(-add)s of one `marginals` call.
+        /// Multiply(-add)s of one `marginals` call (lane vectors when `LANES > 1`).
         pub const MACS_MARGINALS: usize = #mm;
-        /// Multiply(-add)s of one `mpe` call.
+        /// Multiply(-add)s of one `mpe` call (lane vectors when `LANES > 1`).
         pub const MACS_MPE: usize = #mp;
         /// Worst-case multiply(-add)s of one [`State::observe`] plus [`State::marginals`].
         pub const MACS_OBSERVE_MARGINALS: usize = #mo;

@@ -15,32 +15,58 @@ fn generics() -> TokenStream {
     quote!(::<V, NUM_CLASSES, K, NUM_PLACES, H, NUM_TREES>)
 }
 
+/// The sentences `log_likelihood` and `marginals` add when the messages are in fixed
+/// point (`message_error`: each entry within `η` of itself, relative): the bounds
+/// `n·η` nats and `4n·η` with this module's numbers. None otherwise.
+fn fixed_accuracy(places: usize, message_error: Option<f64>) -> (Option<String>, Option<String>) {
+    let Some(eta) = message_error else {
+        return (None, None);
+    };
+    let n = places as f64;
+    // lint: the bound's numbers are this module's, part of a doc comment.
+    let ll = format!(
+        " Messages `ψ·b` in fixed point: each entry within `η` = {eta:.1e} of itself, so at most `n·η` = {:.1e} nats more (a loose worst case).",
+        n * eta
+    );
+    // lint: the bound's numbers are this module's, part of a doc comment.
+    let marginals = format!(
+        " Messages `ψ·b` in fixed point: each entry within `η` = {eta:.1e} of itself, so a marginal within `4n·η` = {:.1e} more (a loose worst case).",
+        4.0 * n * eta
+    );
+    (Some(ll), Some(marginals))
+}
+
 /// `log_likelihood`, `labelled_log_likelihood`, `marginals`, `mpe` and their
 /// `_unchecked` twins.
-pub(super) fn stateless_api(cx: &Context) -> TokenStream {
+pub(super) fn stateless_api(cx: &Context, message_error: Option<f64>) -> TokenStream {
     let (rt, t, g) = (rt(), cx.l.ty(), generics());
     let err = quote!(::graphspn_runtime::EvidenceError);
+    let (fixed_ll, fixed_marginals) = fixed_accuracy(cx.n, message_error);
+    let mut ll_doc = vec![
+        " Natural log of the likelihood `S(α) = Σ_y P(y) Π_v α_v(y_v)^γ` of the evidence",
+        " (relative error a few `ε` per place: one rounding per multiply-add, every",
+        " product kept with an exact power-of-two exponent).",
+    ];
+    ll_doc.extend(fixed_ll.as_deref());
     let log_likelihood = checked(
         &cx.l,
-        &[
-            " Natural log of the likelihood `S(α) = Σ_y P(y) Π_v α_v(y_v)^γ` of the evidence",
-            " (relative error a few `ε` per place: one rounding per multiply-add, every",
-            " product kept with an exact power-of-two exponent).",
-        ],
+        &ll_doc,
         "log_likelihood",
         quote!(e: &Evidence),
         quote!(e),
         TokenStream::new(),
     );
     let labelled = checked_labelled(&cx.l);
+    let mut marginals_doc = vec![
+        " Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error",
+        " about 1e-6 in `f32`), mixed over the trees as the model says (`AVERAGE_MIXING`),",
+        " and returns `ln S(α)`. Per tree an upward and a downward pass; [`State`] caches the",
+        " upward messages instead.",
+    ];
+    marginals_doc.extend(fixed_marginals.as_deref());
     let marginals = checked(
         &cx.l,
-        &[
-            " Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error",
-            " about 1e-6 in `f32`), mixed over the trees as the model says (`AVERAGE_MIXING`),",
-            " and returns `ln S(α)`. Per tree an upward and a downward pass; [`State`] caches the",
-            " upward messages instead.",
-        ],
+        &marginals_doc,
         "marginals",
         quote!(e: &Evidence, out: &mut Marginals),
         quote!(e, out),
@@ -103,9 +129,9 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
         ///
         /// An update (`set_evidence`, `observe`, `clear_evidence`) recomputes the place's path
         /// to the root in every tree (messages recomputed, never divided out: no drift).
-        /// `observe` keeps each class's product of observations exactly (a mantissa and a
-        /// binary exponent per class), so no class underflows or is locked out however many
-        /// observations arrive, and `log_likelihood` is that of the product of every
+        /// `observe` keeps each class's product of observations as a mantissa and a binary
+        /// exponent (one rounding per observation and class, relative `ε/2`: no class
+        /// underflows or is locked out), and `log_likelihood` is that of the product of every
         /// observation. Costs: an update `Σ_t (depth_t(place) + 1)` beliefs and
         /// matrix–vector products; `log_likelihood` O(trees · classes); `marginal(place)` a
         /// walk from each root to the place; `marginals` one downward pass per tree; `mpe`
@@ -138,8 +164,8 @@ pub(super) fn state_api(cx: &Context) -> TokenStream {
                 self.0.set_evidence(&MODEL, &PLACE_IDS, place, row)
             }
 
-            /// Fuses a new observation into the place's row (element-wise product, kept
-            /// exactly per class) and updates the cache. An invalid row, or one that leaves
+            /// Fuses a new observation into the place's row (element-wise product, one
+            /// rounding per class) and updates the cache. An invalid row, or one that leaves
             /// the place no class at all, is rejected and nothing changes.
             pub fn observe(&mut self, place: usize, row: &[#t; NUM_CLASSES]) -> Result<(), #err> {
                 self.0.observe(&MODEL, &PLACE_IDS, place, row)

@@ -72,7 +72,7 @@ pub fn module(
     let items = items(model, &cx);
     let tables = forest_tables(&plans, &cx);
     let statics = model_static(&pot, cache, &cx);
-    let stateless = api::stateless_api(&cx);
+    let stateless = api::stateless_api(&cx, report.message_error);
     let state = api::state_api(&cx);
     let compiled_map = compiled_map_impl(&cx.l);
     let tokens = quote! {

@@ -48,8 +48,8 @@ impl Context {
         );
         options.check(n)?;
         if !(2..=256).contains(&c) {
-            return Err(CodegenError::BadOption(format!(
-                "a tree mixture is compiled for 2 to 256 classes, the model has {c}"
+            return Err(CodegenError::Unsupported(format!(
+                "a tree mixture is compiled for 2 to 256 classes, the model has {c} (`graphspn infer` evaluates it)"
             )));
         }
         if !(1..=crate::treemix::model::MAX_TREES).contains(&t) {

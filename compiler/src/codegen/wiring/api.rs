@@ -94,15 +94,55 @@ pub(super) fn stateless_api(
     quote!(#likelihood #marginals #mpe)
 }
 
+/// What the documentation of `log_likelihood` and `marginals` says of their error:
+/// rounding in floating point, or the fixed-point kernel's bound with this module's
+/// numbers (`K`, `D`; see the generator's `fixed` module and `Arithmetic::Fixed`).
+struct Accuracy {
+    /// The rest of `log_likelihood`'s first sentence.
+    log_likelihood: String,
+    /// The rest of `marginals`' first sentence.
+    marginals: String,
+}
+
+impl Accuracy {
+    fn of(cx: &Context) -> Accuracy {
+        if !cx.fixed {
+            return Accuracy {
+                log_likelihood: " (relative error about 1e-6 in `f32`: one rounding per multiply-add, products kept with exact exponents).".into(),
+                marginals: " (absolute error about 1e-6 in `f32`).".into(),
+            };
+        }
+        let unit = 2f64.powi(-13);
+        let (k, d) = (cx.k_max as f64, cx.d_count as f64);
+        let ll = k * unit;
+        let marginal = 8.0 * unit + 2.0 * k * unit + 3.0 * d * 2f64.powi(-31);
+        // lint: the bound's numbers are this module's, part of a doc comment.
+        let log_likelihood = format!(
+            " (fixed-point kernel: block templates in Q0.32 integers, each kept value within `2^-13` of itself, so within `K·2^-13` = {ll:.1e} nats of exact arithmetic, `K` = {} components in the largest decomposition; a loose worst case, plus `f32` rounding).",
+            cx.k_max
+        );
+        // lint: the bound's numbers are this module's, part of a doc comment.
+        let marginals = format!(
+            " (fixed-point kernel: each entry within `2^-10 + 2K·2^-13 + 3D·2^-31` = {marginal:.1e} of exact arithmetic, `K` = {} components in the largest decomposition, `D` = {} decompositions; a loose worst case).",
+            cx.k_max, cx.d_count
+        );
+        Accuracy {
+            log_likelihood,
+            marginals,
+        }
+    }
+}
+
 /// `log_likelihood` and `labelled_log_likelihood` (value pass only).
 fn likelihood_api(cx: &Context, table: Table) -> TokenStream {
     let (rt, t) = (rt(), cx.l.ty());
     let table = bind_table(table, quote!(Some(labels)));
+    let accuracy = Accuracy::of(cx);
     let log_likelihood = checked(
         &cx.l,
         &[
-            " Natural log of the likelihood `S(α)` of the evidence (relative error about 1e-6 in",
-            " `f32`: one rounding per multiply-add, products kept with exact exponents).",
+            " Natural log of the likelihood `S(α)` of the evidence",
+            &accuracy.log_likelihood,
         ],
         "log_likelihood",
         quote!(e: &Evidence),
@@ -157,11 +197,13 @@ fn posterior_pass(tpls: &[Tpl], cx: &Context, one_pass: bool, prescale: bool) ->
     } else {
         " posteriors instead."
     };
+    let accuracy = Accuracy::of(cx);
     let checked = checked(
         &cx.l,
         &[
-            " Writes the marginals `P(Y_p = c | α)` of every place into `out` (absolute error",
-            " about 1e-6 in `f32`) and returns the log-likelihood `ln S(α)`.",
+            " Writes the marginals `P(Y_p = c | α)` of every place into `out`",
+            &accuracy.marginals,
+            " Returns the log-likelihood `ln S(α)`.",
             passes,
             passes_end,
         ],

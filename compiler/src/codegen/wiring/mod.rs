@@ -82,6 +82,8 @@ struct Context {
     simd_lanes: usize,
     /// Fixed-point value and posterior functions for block templates.
     fixed: bool,
+    /// Components of the largest decomposition (the `K` of the fixed-point bound).
+    k_max: usize,
 }
 
 impl Context {
@@ -116,6 +118,7 @@ impl Context {
                 (Vectorisation::Simd, Precision::F64) => 4,
             },
             fixed,
+            k_max: decs.iter().map(|d| d.components.len()).max().unwrap_or(0),
         })
     }
 }
@@ -556,10 +559,11 @@ fn component_int(components: usize) -> (Ident, usize) {
     }
 }
 
-/// Bytes of the streaming `State`: the evidence rows (on SIMD hosts also scaled, see
-/// `state.rs`), their scales, fused form and the sum of their shifts, every component's
-/// value, the posterior rows (per component, or on SIMD hosts per place and
-/// decomposition), the values' partial products, the decomposition weights.
+/// Bytes of the streaming `State` (`size_of`, exactly): the evidence rows (on SIMD hosts
+/// also scaled, see `state.rs`), their scales, fused form and the sum of their shifts,
+/// every component's value, the posterior rows (per component, or on SIMD hosts per
+/// place and decomposition), the values' partial products, the decomposition weights,
+/// the last likelihood and two flags.
 fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     let (n, c, scalar) = (cx.n, cx.c, cx.scalar);
     // `Acc`: a mantissa, an `i32` exponent and a log, aligned to the scalar.
@@ -573,7 +577,9 @@ fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
     } else {
         layout.rows
     };
-    n * c * scalar * row_tables
+    // The fields, then `lhat` and the two flags; no field's size leaves a gap before a
+    // field of smaller alignment, so only the end is padded, to the `i64`'s 8 bytes.
+    let fields = n * c * scalar * row_tables
         + n * scalar
         + n * fused_bytes(c, scalar)
         + 8
@@ -581,7 +587,10 @@ fn state_bytes(layout: &Layout, tpls: &[Tpl], cx: &Context) -> usize {
         + chunks * cx.d_count * acc
         + post_rows * c * scalar
         + cx.d_count * scalar
-        + 16
+        + scalar
+        + 2;
+    let align = scalar.max(8);
+    fields.div_ceil(align) * align
 }
 
 /// How the stateless entry points run (see [`api::stateless_api`]).

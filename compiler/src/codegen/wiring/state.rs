@@ -98,9 +98,11 @@ fn state_type(cx: &Context, table: bool) -> TokenStream {
         /// decompositions from the cached component values (partial products of 16 values,
         /// recomputed where a value changed; never by dividing or subtracting, so a million
         /// updates do not drift). `observe` keeps each class's product of
-        /// observations exactly (a mantissa and a binary exponent per class): no class
-        /// underflows, none is locked out however many observations arrive, and
-        /// `log_likelihood` is that of the product of every observation. Costs: an update, about
+        /// observations as a mantissa and a binary exponent per class, one rounding per
+        /// observation and class (relative `ε/2`: after `n` observations at most about
+        /// `n·ε/2`, typically `√n·ε/2`): no class underflows, none is locked out however
+        /// many observations arrive, and `log_likelihood` is that of the product of every
+        /// observation (to those roundings). Costs: an update, about
         /// [`MACS_OBSERVE_MARGINALS`] multiply-adds with `marginals`; `log_likelihood` one
         /// addition per place (their rows' scales), `marginal` O(D·C); `marginals`
         /// O(places·D·C); `mpe` and
@@ -334,8 +336,8 @@ fn update_methods(cx: &Context, table: bool, log_space: bool) -> TokenStream {
             Ok(())
         }
 
-        /// Fuses a new observation into the place's row (element-wise product, kept
-        /// exactly per class, so repeated observations never underflow) and updates the
+        /// Fuses a new observation into the place's row (element-wise product, one
+        /// rounding per class, so repeated observations never underflow) and updates the
         /// cache. An invalid row, or one that leaves the place no class at all, is
         /// rejected and nothing changes.
         pub fn observe(&mut self, place: usize, row: &[#t; NUM_CLASSES]) -> Result<(), #err> {
