@@ -5,6 +5,7 @@
 
 mod cli_support;
 
+use std::path::Path;
 use std::process::Command;
 
 use cli_support::{bin, demo, run_ok, run_refused};
@@ -117,6 +118,41 @@ fn instance_exports_dot_and_compile_writes_generated_source() {
     let src = std::fs::read_to_string(&out).unwrap();
     assert!(src.starts_with("// @generated"), "{}", &src[..80]);
     assert!(src.contains("pub const NUM_PLACES: usize = 80;"));
+    assert!(src.contains("(absolute error about 1e-6 in `f32`)"));
+    // A relative --out: the printed `include!` names it from the crate's root (an
+    // `include!` path is relative to the file it is in); SIMD stack figures are
+    // estimates, and the multiply-adds lane-vector operations.
+    std::fs::create_dir(dir.path().join("src")).unwrap();
+    let run = compile_demo(Path::new("src/floor.rs"))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains(
+            r#"pub mod floor { include!(concat!(env!("CARGO_MANIFEST_DIR"), "/src/floor.rs")); }"#
+        ),
+        "{err}"
+    );
+    assert!(
+        err.contains("stack per call (bytes, estimate")
+            && err.contains("multiply-adds per call (lane-vector operations)"),
+        "{err}"
+    );
+    // The fixed-point kernel's module states its own bound, not the float one.
+    let fixed = dir.path().join("fixed.rs");
+    let run = compile_demo(&fixed).arg("--fixed-point").output().unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(err.contains("stack per call (bytes, upper bound)"), "{err}");
+    let src = std::fs::read_to_string(&fixed).unwrap();
+    assert!(
+        src.contains("fixed-point kernel: each entry within `2^-10 + 2K·2^-13 + 3D·2^-31`")
+            && src.contains("within `K·2^-13` =")
+            && !src.contains("about 1e-6"),
+        "the fixed-point module's accuracy"
+    );
     // A hand-written file is not overwritten without --force.
     std::fs::write(&out, "// mine\n").unwrap();
     let status = compile_demo(&out).status().unwrap();
@@ -190,9 +226,13 @@ fn compile_writes_a_tree_mixture_module_and_reports_it() {
     );
     let src = std::fs::read_to_string(dir.path().join("fixed.rs")).unwrap();
     assert!(src.contains("FixedMatrices {") && src.contains("SoftF32"));
-    // An existing file: a missing one is refused first, as every missing input is.
-    let decs = dir.path().join("d.json");
-    std::fs::write(&decs, "{}").unwrap();
+    assert!(
+        src.contains("Messages `ψ·b` in fixed point: each entry within `η` = 4.7e-5 of itself"),
+        "the fixed-point module's accuracy"
+    );
+    // A flag that does not apply to the family is refused as such, before its value
+    // or file is looked at (this file does not exist).
+    let decs = dir.path().join("missing.json");
     let decs = decs.to_str().unwrap();
     for flags in [["--strategy", "cover"], ["--decompositions", decs]] {
         let run = bin()
@@ -421,6 +461,28 @@ fn a_tree_mixture_trains_infers_and_renders() {
     let mpe = &post["mpe"];
     assert!(mpe["log_probability"].as_f64().unwrap() >= mpe["log_max_product"].as_f64().unwrap());
     assert_eq!(infer(&["--trees", "1"])["model"]["trees"], 1);
+    // GraphSPN-only flags are refused as such before their value or file is looked at.
+    for (cmd, flag, value) in [
+        ("infer", "--decompositions", "0"),
+        ("instance", "--decompositions", "0"),
+        ("infer", "--decompositions-file", "missing.json"),
+        ("instance", "--decompositions-file", "missing.json"),
+    ] {
+        let err = run_refused(
+            bin()
+                .args([cmd, "--model"])
+                .arg(&model)
+                .arg("--map")
+                .arg(demo("floor.json"))
+                .args([flag, value]),
+        );
+        assert!(
+            err.contains(&format!(
+                "{flag} applies to GraphSPN models; --model holds a tree mixture"
+            )),
+            "{cmd} {flag}: {err}"
+        );
+    }
     let svg = dir.path().join("t.svg");
     run_ok(
         bin()
@@ -438,6 +500,57 @@ fn a_tree_mixture_trains_infers_and_renders() {
         79,
         "a spanning tree of 80 places"
     );
+    // The trees `infer --trees 5` mixes can be drawn and exported too: the same seed
+    // and count draw the same trees in every command.
+    run_ok(
+        bin()
+            .args(["render", "--map"])
+            .arg(demo("floor.json"))
+            .arg("--model")
+            .arg(&model)
+            .args(["--trees", "5", "--tree", "5", "--force", "--out"])
+            .arg(&svg),
+    );
+    let err = run_refused(
+        bin()
+            .args(["render", "--map"])
+            .arg(demo("floor.json"))
+            .arg("--model")
+            .arg(&model)
+            .args(["--tree", "5", "--force", "--out"])
+            .arg(&svg),
+    );
+    assert!(
+        err.contains("the model mixes 3 trees (give 1 to 3)"),
+        "{err}"
+    );
+    let exported = run_ok(
+        bin()
+            .args(["instance", "--model"])
+            .arg(&model)
+            .arg("--map")
+            .arg(demo("floor.json"))
+            .args(["--trees", "5"]),
+    );
+    let exported: serde_json::Value = serde_json::from_str(&exported).unwrap();
+    assert_eq!(exported["trees"].as_array().unwrap().len(), 5);
+    // A map whose classes are not the model's is refused by render as by infer.
+    let other = dir.path().join("other.json");
+    std::fs::write(
+        &other,
+        r#"{"format": 1, "name": "abc", "classes": ["A", "B", "C"], "places": [{"id": 1, "class": "A", "placeholder": false, "x": 0, "y": 0}, {"id": 2, "class": "B", "placeholder": false, "x": 1, "y": 0}], "edges": [[1, 2]]}"#,
+    )
+    .unwrap();
+    let err = run_refused(
+        bin()
+            .args(["render", "--map"])
+            .arg(&other)
+            .arg("--model")
+            .arg(&model)
+            .args(["--force", "--out"])
+            .arg(&svg),
+    );
+    assert!(err.contains("does not fit --model"), "{err}");
 }
 
 /// `infer` reads evidence on every place of a 20,000-place map in one pass (it used to

@@ -40,7 +40,8 @@ overrides the model's number of trees). An existing --out file is replaced witho
 --force only if graphspn generated it."
 )]
 pub struct CompileArgs {
-    /// Model file (JSON, from `graphspn train`): a GraphSPN or a tree mixture.
+    /// Model file (JSON, from `graphspn train`): a GraphSPN or a tree mixture (of 2 to
+    /// 256 classes).
     #[arg(long)]
     model: PathBuf,
     /// Map: a JSON map file, a COLD sequence folder (nodes.dat + rooms.dat), or a
@@ -122,7 +123,8 @@ pub fn run(args: CompileArgs) -> Result<()> {
     outputs.input_file("--model", &args.model)?;
     let map_path = declare_map(&args.map, data_dir(args.data.clone()), &mut outputs)?;
     if let Some(d) = &args.decompositions {
-        outputs.input_file("--decompositions", d)?;
+        // Checked by `count_decompositions_file` once the model is known to be a GraphSPN.
+        outputs.input("--decompositions", d);
     }
     // The @generated rule: a file graphspn generated is replaced without --force.
     let generated =
@@ -263,12 +265,24 @@ pub fn run(args: CompileArgs) -> Result<()> {
         },
         code.len()
     );
-    eprintln!(
-        "use it with: pub mod {} {{ include!({:?}); }}",
-        args.module,
-        args.out.display().to_string()
-    );
+    eprintln!("{}", include_hint(&args.module, &args.out));
     Ok(())
+}
+
+/// How to include the written module: `include!` reads a relative path from the
+/// folder of the file it appears in, so a relative `--out` is given from the crate's
+/// root (`CARGO_MANIFEST_DIR`), which works from any file of a crate whose root is the
+/// current folder.
+fn include_hint(module: &str, out: &std::path::Path) -> String {
+    let path = out.display().to_string();
+    if out.is_absolute() {
+        format!("use it with: pub mod {module} {{ include!({path:?}); }}")
+    } else {
+        let rel = format!("/{}", path.trim_start_matches("./"));
+        format!(
+            "use it in the crate whose Cargo.toml is in this folder with: pub mod {module} {{ include!(concat!(env!(\"CARGO_MANIFEST_DIR\"), {rel:?})); }}"
+        )
+    }
 }
 
 /// The generator's report as one line (stack bounds, state and table bytes,
@@ -298,13 +312,23 @@ fn describe(inputs: &AnyInputs, r: &CodeReport) -> String {
         format!("; messages in fixed point, each entry within {eta:.2e} of itself (relative)")
     });
     format!(
-        "{what}; stack per call (bytes, upper bound): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call: log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} {units} on average{fixed}",
+        "{what}; stack per call (bytes, {}): log_likelihood {}, marginals {}, mpe {}, state {}; state {} bytes, tables {} bytes; multiply-adds per call ({}): log_likelihood {}, marginals {}, mpe {}, observe + marginals {}; a state update re-evaluates {:.2} {units} on average{fixed}",
+        if r.lanes > 1 {
+            "estimate: SIMD frames depend on the target features"
+        } else {
+            "upper bound"
+        },
         r.stack_log_likelihood,
         r.stack_marginals,
         r.stack_mpe,
         r.stack_state,
         r.state_bytes,
         r.table_bytes,
+        if r.lanes > 1 {
+            "lane-vector operations"
+        } else {
+            "scalar"
+        },
         r.macs_log_likelihood,
         r.macs_marginals,
         r.macs_mpe,

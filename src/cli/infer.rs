@@ -4,8 +4,9 @@
 //!
 //! Evidence file (JSON): `{"format": 1, "evidence": {"<place id>": [α per class], …}}`.
 //! α are non-negative class likelihoods (need not sum to 1, not all 0); places not
-//! listed get α = 1 for every class (no evidence), so the reported log-likelihood is
-//! ln P(evidence of the listed places). `docs/FORMATS.md` describes the file.
+//! listed get α = 1 for every class (no evidence). The reported log-likelihood is the
+//! model's `ln Σ_y P(y) Π_v α_v(y_v)` (a tree mixture raises the rows to its evidence
+//! exponent γ first). `docs/FORMATS.md` describes the file.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -143,16 +144,14 @@ struct InferOut<'a> {
 pub fn run(args: InferArgs) -> Result<()> {
     // Every argument and input is checked before any work or write.
     let mut outputs = Outputs::new(args.force);
-    if let Some(d) = args.decompositions {
-        check_decomposition_count("--decompositions", d)?;
-    }
     outputs.input_file("--model", &args.model)?;
     let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     if let Some(p) = &args.evidence {
         outputs.input_file("--evidence", p)?;
     }
     if let Some(f) = &args.decompositions_file {
-        outputs.input_file("--decompositions-file", f)?;
+        // Checked by `count_decompositions_file` once the model is known to be a GraphSPN.
+        outputs.input("--decompositions-file", f);
     }
     if let Some(p) = &args.out {
         outputs.file("--out", p)?;
@@ -186,6 +185,7 @@ pub fn run(args: InferArgs) -> Result<()> {
                 }
                 None => {
                     let count = args.decompositions.unwrap_or(5);
+                    check_decomposition_count("--decompositions", count)?;
                     let work = Work::Components {
                         count,
                         candidates: candidates(count),

@@ -3,11 +3,13 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 use clap::{Args, ValueEnum};
 
 use super::budget::{Budget, Work, read_map_within};
-use super::flag_checks::{check_decomposition_count, parse_strategy, refuse_graphspn_flags};
+use super::flag_checks::{
+    check_decomposition_count, flag_domain, parse_strategy, refuse_graphspn_flags,
+};
 use super::map_input::{data_dir, declare_map, map_fits};
 use super::model_input::{
     count_decompositions_file, decompositions_for, instance_of, load_any_model,
@@ -15,6 +17,7 @@ use super::model_input::{
 use super::output::{Outputs, emit};
 
 use graphspn_compiler::decompose::DecompositionStrategy;
+use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::instance::{spn_dot, tree_instance_json};
 use graphspn_compiler::treemix::{TreeInstance, instance_spn};
@@ -22,7 +25,8 @@ use graphspn_compiler::treemix::{TreeInstance, instance_spn};
 /// Output format of `graphspn instance`.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum InstanceFormat {
-    /// Every SPN node, the decompositions and the place ids.
+    /// Every SPN node, the decompositions (a tree mixture: its spanning trees) and the
+    /// place ids.
     Json,
     /// A Graphviz digraph of the SPN.
     Dot,
@@ -60,6 +64,10 @@ pub struct InstanceArgs {
     /// Seed of the decompositions, or of a tree mixture's spanning trees.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Tree mixture: spanning trees mixed (1..=64; default: the model's), as `infer
+    /// --trees` and `compile --count` mix them.
+    #[arg(long)]
+    trees: Option<usize>,
     /// GraphSPN: how decompositions are drawn: `paper` (the authors' scheme, the
     /// default) or `cover` (frontier places join their neighbour's component rather
     /// than stay alone).
@@ -76,25 +84,32 @@ pub struct InstanceArgs {
 /// Runs `graphspn instance`.
 pub fn run(args: InstanceArgs) -> Result<()> {
     let mut outputs = Outputs::new(args.force);
-    if let Some(d) = args.decompositions {
-        check_decomposition_count("--decompositions", d)?;
-    }
     outputs.input_file("--model", &args.model)?;
     let map_path = declare_map(&args.map, data_dir(args.data), &mut outputs)?;
     if let Some(f) = &args.decompositions_file {
-        outputs.input_file("--decompositions-file", f)?;
+        // Checked by `count_decompositions_file` once the model is known to be a GraphSPN.
+        outputs.input("--decompositions-file", f);
     }
     if let Some(p) = &args.out {
         outputs.file("--out", p)?;
     }
     let model = match load_any_model(&args.model)? {
-        AnyModel::Graphspn(m) => m,
-        AnyModel::TreeMixture(t) => {
+        AnyModel::Graphspn(m) => {
+            if args.trees.is_some() {
+                bail!("--trees applies to tree-mixture models; --model holds a GraphSPN");
+            }
+            m
+        }
+        AnyModel::TreeMixture(mut t) => {
             refuse_graphspn_flags(&[
                 ("--decompositions", args.decompositions.is_some()),
                 ("--decompositions-file", args.decompositions_file.is_some()),
                 ("--strategy", args.strategy.is_some()),
             ])?;
+            if let Some(count) = args.trees {
+                flag_domain("--trees", domain::trees("trees", count))?;
+                t.trees = count;
+            }
             let budget = Budget::new(
                 format!("the explicit SPN of {} trees", t.trees),
                 Work::TreeSpn {
@@ -135,6 +150,7 @@ pub fn run(args: InstanceArgs) -> Result<()> {
     // The decompositions step; the explicit SPN of the decompositions made is
     // estimated exactly before it is built ([`instance_of`]).
     let count = args.decompositions.unwrap_or(5);
+    check_decomposition_count("--decompositions", count)?;
     let budget = match &args.decompositions_file {
         Some(f) => {
             let count = count_decompositions_file("--decompositions-file", f)?;

@@ -15,10 +15,9 @@ use graphspn_compiler::treemix::SpanningTrees;
 use graphspn_compiler::domain;
 
 use super::flag_checks::flag_domain;
-use super::map_input::{data_dir, declare_map, read_map, require_data_dir};
+use super::map_input::{data_dir, declare_map, map_fits, read_map, require_data_dir};
 use super::model_input::load_any_model;
-use super::output::write_stdout;
-use super::output::{Outputs, write_files};
+use super::output::{Outputs, write_files, write_stdout};
 
 fn synthetic(flag: &str, places: usize, seed: u64) -> Result<TopoMap> {
     flag_domain(flag, domain::synthetic_places("places", places))?;
@@ -105,9 +104,14 @@ pub struct RenderArgs {
     /// seeded by `--seed`) over the map.
     #[arg(long)]
     model: Option<PathBuf>,
-    /// Which spanning tree to draw (1 = the first; at most the model's tree count).
+    /// Which spanning tree to draw (1 = the first; at most the tree count).
     #[arg(long, requires = "model")]
     tree: Option<usize>,
+    /// Spanning trees drawn for the map (1..=64; default: the model's), as `infer
+    /// --trees` and `compile --count` mix them: the same seed and count draw the same
+    /// trees.
+    #[arg(long, requires = "model")]
+    trees: Option<usize>,
     /// Output SVG file.
     #[arg(long)]
     out: PathBuf,
@@ -127,6 +131,9 @@ pub fn render(args: RenderArgs) -> Result<()> {
         outputs.input_file("--model", p)?;
     }
     outputs.file("--out", &args.out)?;
+    if let Some(t) = args.trees {
+        flag_domain("--trees", domain::trees("trees", t))?;
+    }
     let model = match &args.model {
         Some(p) => match load_any_model(p)? {
             AnyModel::TreeMixture(t) => Some(t),
@@ -144,16 +151,21 @@ pub fn render(args: RenderArgs) -> Result<()> {
     };
     let tree = match &model {
         Some(t) => {
-            let k = args.tree.unwrap_or(1);
-            if !(1..=t.trees).contains(&k) {
-                bail!(
-                    "--tree {k}: the model mixes {} trees (give 1 to {})",
-                    t.trees,
-                    t.trees
-                );
+            if let (Some(map), Some(model)) = (&map_path, &args.model) {
+                map_fits(graphspn_compiler::treemix::check_map(t, &m), map, model)?;
             }
-            let trees = SpanningTrees::covering(&m, t.trees, args.seed)?;
-            Some((k, t.trees, trees.forests[k - 1].edges()))
+            let count = args.trees.unwrap_or(t.trees);
+            let k = args.tree.unwrap_or(1);
+            if !(1..=count).contains(&k) {
+                let whose = if args.trees.is_some() {
+                    "--trees gives"
+                } else {
+                    "the model mixes"
+                };
+                bail!("--tree {k}: {whose} {count} trees (give 1 to {count})");
+            }
+            let trees = SpanningTrees::covering(&m, count, args.seed)?;
+            Some((k, count, trees.forests[k - 1].edges()))
         }
         None => None,
     };

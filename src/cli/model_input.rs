@@ -30,9 +30,12 @@ pub fn load_any_model(path: &Path) -> Result<AnyModel> {
 pub const MAX_DECOMPOSITIONS: usize = graphspn_compiler::decompose::MAX_DECOMPOSITIONS;
 
 /// How many decompositions the decompositions file `path` (given with `flag`) holds,
-/// counted as it is read without keeping them; refused when none or more than
-/// [`MAX_DECOMPOSITIONS`].
+/// counted as it is read without keeping them; refused when it is missing or a folder
+/// ([`check_input_file`]), or holds none or more than [`MAX_DECOMPOSITIONS`]. Commands
+/// declare the file with `Outputs::input` and leave its checks to this, so a flag that
+/// does not apply to the model's family is refused as such first.
 pub fn count_decompositions_file(flag: &str, path: &Path) -> Result<usize> {
+    check_input_file(flag, path)?;
     let count = graphspn_compiler::decompose::file::count(path)
         .with_context(|| format!("{flag} {}", path.display()))?;
     if count == 0 {
