@@ -483,16 +483,20 @@ fn a_tree_mixture_trains_infers_and_renders() {
             "{cmd} {flag}: {err}"
         );
     }
+    // `render` of the model's trees on `map` with `flags`.
     let svg = dir.path().join("t.svg");
-    run_ok(
-        bin()
-            .args(["render", "--map"])
-            .arg(demo("floor.json"))
+    let render = |map: &Path, flags: &[&str]| {
+        let mut cmd = bin();
+        cmd.args(["render", "--force", "--map"])
+            .arg(map)
             .arg("--model")
             .arg(&model)
-            .args(["--tree", "3", "--out"])
-            .arg(&svg),
-    );
+            .args(flags)
+            .arg("--out")
+            .arg(&svg);
+        cmd
+    };
+    run_ok(&mut render(&demo("floor.json"), &["--tree", "3"]));
     let text = std::fs::read_to_string(&svg).unwrap();
     roxmltree::Document::parse(&text).unwrap();
     assert_eq!(
@@ -502,24 +506,11 @@ fn a_tree_mixture_trains_infers_and_renders() {
     );
     // The trees `infer --trees 5` mixes can be drawn and exported too: the same seed
     // and count draw the same trees in every command.
-    run_ok(
-        bin()
-            .args(["render", "--map"])
-            .arg(demo("floor.json"))
-            .arg("--model")
-            .arg(&model)
-            .args(["--trees", "5", "--tree", "5", "--force", "--out"])
-            .arg(&svg),
-    );
-    let err = run_refused(
-        bin()
-            .args(["render", "--map"])
-            .arg(demo("floor.json"))
-            .arg("--model")
-            .arg(&model)
-            .args(["--tree", "5", "--force", "--out"])
-            .arg(&svg),
-    );
+    run_ok(&mut render(
+        &demo("floor.json"),
+        &["--trees", "5", "--tree", "5"],
+    ));
+    let err = run_refused(&mut render(&demo("floor.json"), &["--tree", "5"]));
     assert!(
         err.contains("the model mixes 3 trees (give 1 to 3)"),
         "{err}"
@@ -541,15 +532,7 @@ fn a_tree_mixture_trains_infers_and_renders() {
         r#"{"format": 1, "name": "abc", "classes": ["A", "B", "C"], "places": [{"id": 1, "class": "A", "placeholder": false, "x": 0, "y": 0}, {"id": 2, "class": "B", "placeholder": false, "x": 1, "y": 0}], "edges": [[1, 2]]}"#,
     )
     .unwrap();
-    let err = run_refused(
-        bin()
-            .args(["render", "--map"])
-            .arg(&other)
-            .arg("--model")
-            .arg(&model)
-            .args(["--force", "--out"])
-            .arg(&svg),
-    );
+    let err = run_refused(&mut render(&other, &[]));
     assert!(err.contains("does not fit --model"), "{err}");
 }
 

@@ -154,7 +154,8 @@ fn bfs_submap(map: &TopoMap, start: usize, n: usize) -> TopoMap {
     map.induced_submap(&order)
 }
 
-/// The tuned settings `graphspn validate` chose (docs/REPRODUCTION.md): potentials,
+/// The tuned settings an earlier `graphspn validate` run chose (they include every
+/// potential and exponent of the run docs/REPRODUCTION.md reports): potentials,
 /// coupling, evidence exponent; BP flooding with damping 0.5, at most 200 sweeps.
 const TUNED: [(&str, Normalisation, f64, f64); 6] = [
     ("MRF-2", Normalisation::Normalised, 0.45, 3.0),
