@@ -25,6 +25,18 @@ pub fn refuse_graphspn_flags(flags: &[(&str, bool)]) -> Result<()> {
     Ok(())
 }
 
+/// Refuses `--trees` for a GraphSPN model; checks it against its domain (1 to 64)
+/// when given.
+pub fn check_trees_flag(trees: Option<usize>, graphspn: bool) -> Result<()> {
+    match trees {
+        Some(_) if graphspn => {
+            bail!("--trees applies to tree-mixture models; --model holds a GraphSPN")
+        }
+        Some(t) => flag_domain("--trees", domain::trees("trees", t)),
+        None => Ok(()),
+    }
+}
+
 /// A flag's value checked by a [`graphspn_compiler::domain`] function, as the flag's
 /// error: `--flag value: must be …`.
 pub fn flag_domain(flag: &str, checked: Result<(), DomainError>) -> Result<()> {

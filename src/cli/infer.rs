@@ -11,7 +11,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use graphspn_compiler::render::{RenderOptions, render_svg};
 use serde::Serialize;
@@ -20,7 +20,7 @@ use serde_json::json;
 use super::budget::{Budget, Work, candidates, read_map_within};
 use super::evidence::read_evidence;
 use super::flag_checks::{
-    check_decomposition_count, flag_domain, parse_strategy, refuse_graphspn_flags,
+    check_decomposition_count, check_trees_flag, parse_strategy, refuse_graphspn_flags,
 };
 use super::map_input::{any_map_fits, data_dir, declare_map};
 use super::model_input::{
@@ -28,7 +28,6 @@ use super::model_input::{
 };
 use super::output::{Outputs, write_files};
 use graphspn_compiler::decompose::DecompositionStrategy;
-use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::interpreter::{Marginals, Mpe};
 use graphspn_compiler::spn::Mixing;
@@ -163,9 +162,7 @@ pub fn run(args: InferArgs) -> Result<()> {
     // The family's flags, and what will be built, before the map is read.
     let budget = match &model {
         AnyModel::Graphspn(model) => {
-            if args.trees.is_some() {
-                bail!("--trees applies to tree-mixture models; --model holds a GraphSPN");
-            }
+            check_trees_flag(args.trees, true)?;
             let classes = model.classes.len();
             match &args.decompositions_file {
                 Some(f) => {
@@ -201,9 +198,7 @@ pub fn run(args: InferArgs) -> Result<()> {
                 ("--decompositions-file", args.decompositions_file.is_some()),
                 ("--strategy", args.strategy.is_some()),
             ])?;
-            if let Some(t) = args.trees {
-                flag_domain("--trees", domain::trees("trees", t))?;
-            }
+            check_trees_flag(args.trees, false)?;
             let trees = args.trees.unwrap_or(model.trees);
             let work = Work::Trees {
                 trees,

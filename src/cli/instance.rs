@@ -3,12 +3,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::{Args, ValueEnum};
 
 use super::budget::{Budget, Work, read_map_within};
 use super::flag_checks::{
-    check_decomposition_count, flag_domain, parse_strategy, refuse_graphspn_flags,
+    check_decomposition_count, check_trees_flag, parse_strategy, refuse_graphspn_flags,
 };
 use super::map_input::{data_dir, declare_map, map_fits};
 use super::model_input::{
@@ -17,7 +17,6 @@ use super::model_input::{
 use super::output::{Outputs, emit};
 
 use graphspn_compiler::decompose::DecompositionStrategy;
-use graphspn_compiler::domain;
 use graphspn_compiler::family::AnyModel;
 use graphspn_compiler::instance::{spn_dot, tree_instance_json};
 use graphspn_compiler::treemix::{TreeInstance, instance_spn};
@@ -95,9 +94,7 @@ pub fn run(args: InstanceArgs) -> Result<()> {
     }
     let model = match load_any_model(&args.model)? {
         AnyModel::Graphspn(m) => {
-            if args.trees.is_some() {
-                bail!("--trees applies to tree-mixture models; --model holds a GraphSPN");
-            }
+            check_trees_flag(args.trees, true)?;
             m
         }
         AnyModel::TreeMixture(mut t) => {
@@ -106,10 +103,8 @@ pub fn run(args: InstanceArgs) -> Result<()> {
                 ("--decompositions-file", args.decompositions_file.is_some()),
                 ("--strategy", args.strategy.is_some()),
             ])?;
-            if let Some(count) = args.trees {
-                flag_domain("--trees", domain::trees("trees", count))?;
-                t.trees = count;
-            }
+            check_trees_flag(args.trees, false)?;
+            t.trees = args.trees.unwrap_or(t.trees);
             let budget = Budget::new(
                 format!("the explicit SPN of {} trees", t.trees),
                 Work::TreeSpn {

@@ -14,7 +14,7 @@ use graphspn_compiler::treemix::SpanningTrees;
 
 use graphspn_compiler::domain;
 
-use super::flag_checks::flag_domain;
+use super::flag_checks::{check_trees_flag, flag_domain};
 use super::map_input::{data_dir, declare_map, map_fits, read_map, require_data_dir};
 use super::model_input::load_any_model;
 use super::output::{Outputs, write_files, write_stdout};
@@ -131,9 +131,7 @@ pub fn render(args: RenderArgs) -> Result<()> {
         outputs.input_file("--model", p)?;
     }
     outputs.file("--out", &args.out)?;
-    if let Some(t) = args.trees {
-        flag_domain("--trees", domain::trees("trees", t))?;
-    }
+    check_trees_flag(args.trees, false)?;
     let model = match &args.model {
         Some(p) => match load_any_model(p)? {
             AnyModel::TreeMixture(t) => Some(t),
