@@ -614,3 +614,64 @@ fn infer_reads_evidence_on_every_place_of_a_large_map_in_one_pass() {
         "{err}"
     );
 }
+
+/// A user's own data folder, with a building of its own name: `train` and `stats`
+/// take the buildings the folder holds (they knew only COLD's three names), a map
+/// that lost places to disconnection is named in a warning, and a building's
+/// sub-folder that is not a sequence is an error naming it (it was skipped).
+#[test]
+fn train_and_stats_take_a_building_of_your_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("my-data/MyLab/seq1");
+    std::fs::create_dir_all(&seq).unwrap();
+    let shipped = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data/cold-topomaps/Freiburg/seq1_cloudy1");
+    for f in ["nodes.dat", "rooms.dat"] {
+        std::fs::copy(shipped.join(f), seq.join(f)).unwrap();
+    }
+    let data = dir.path().join("my-data");
+    let model = dir.path().join("mylab.json");
+    let train = |building: &str| {
+        let mut cmd = bin();
+        cmd.args(["train", "--family", "tree-mixture", "--force", "--data"])
+            .arg(&data)
+            .args(["--buildings", building, "--out"])
+            .arg(&model);
+        cmd
+    };
+    run_ok(&mut train("MyLab"));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(m["trained_on"], serde_json::json!(["MyLab/seq1"]));
+    let stats = run_ok(bin().arg("stats").arg("--data").arg(&data));
+    assert!(stats.contains("MyLab") && stats.contains("all"), "{stats}");
+    let err = run_refused(&mut train("Freiburg"));
+    assert!(
+        err.contains("unknown building \"Freiburg\": the data folder")
+            && err.contains("holds MyLab"),
+        "{err}"
+    );
+    // A disconnected map: two places far from the rest, joined to each other only.
+    let seq2 = dir.path().join("my-data/MyLab/seq2");
+    std::fs::create_dir_all(&seq2).unwrap();
+    let mut nodes = std::fs::read_to_string(seq.join("nodes.dat")).unwrap();
+    let mut rooms = std::fs::read_to_string(seq.join("rooms.dat")).unwrap();
+    for (id, other) in [(9001, 9002), (9002, 9001)] {
+        nodes.push_str(&format!(
+            "{id} 0 50.0 50.0 50.0 50.0 50.0 50.0 CR 1.0 {other} 0.5 0 -1 -1.0 1 -1 -1.0 2 -1 -1.0 3 -1 -1.0 4 -1 -1.0 5 -1 -1.0 6 -1 -1.0 7\n"
+        ));
+        rooms.push_str(&format!("{id} 9-CR-1\n"));
+    }
+    std::fs::write(seq2.join("nodes.dat"), nodes).unwrap();
+    std::fs::write(seq2.join("rooms.dat"), rooms).unwrap();
+    let out = train("MyLab").output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("seq2: the map is not connected; 2 places outside its largest connected component were dropped (ids 9001, 9002)"),
+        "{err}"
+    );
+    std::fs::create_dir(dir.path().join("my-data/MyLab/notes")).unwrap();
+    let err = run_refused(&mut train("MyLab"));
+    assert!(err.contains("notes: not a map"), "{err}");
+}

@@ -30,8 +30,17 @@ fn good_line(id: i64, label: &str, nbrs: &[i64]) -> String {
 
 /// A sequence folder `<tmp>/Bldg/seq` with the given files.
 fn seq(nodes: &str, rooms: Option<&str>) -> (tempfile::TempDir, std::path::PathBuf) {
+    seq_in("Bldg", nodes, rooms)
+}
+
+/// A sequence folder `<tmp>/<building>/seq` with the given files.
+fn seq_in(
+    building: &str,
+    nodes: &str,
+    rooms: Option<&str>,
+) -> (tempfile::TempDir, std::path::PathBuf) {
     let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("Bldg").join("seq");
+    let dir = tmp.path().join(building).join("seq");
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("nodes.dat"), nodes).unwrap();
     if let Some(r) = rooms {
@@ -85,18 +94,55 @@ fn un_nodes_isolated_nodes_and_small_components_dropped() {
     ];
     let rooms = "0 1-CR-1\n1 1-CR-1\n2 1-UN-1\n3 1-KT-1\n4 1-BA-1\n5 1-BA-1\n6 1-CR-1\n";
     let (_tmp, dir) = seq(&lines.join("\n"), Some(rooms));
-    let m = cold::load_sequence(&dir).unwrap();
+    let (m, dropped) = cold::load_sequence_report(&dir).unwrap();
     let ids: Vec<u32> = m.places().map(|p| p.id).collect();
     assert_eq!(ids, vec![0, 1, 6]);
     assert_eq!(m.num_edges(), 3);
+    // What was dropped, and why, for the warnings of every command.
+    assert_eq!(dropped.unknown, vec![2]);
+    assert_eq!(dropped.isolated, vec![3]);
+    assert_eq!(dropped.disconnected, vec![4, 5]);
+    // The same through a building and a map set (`train`, `stats`, `evaluate`).
+    let building = dir.parent().unwrap();
+    let data = building.parent().unwrap();
+    let loaded = cold::load_building_report(data, "Bldg").unwrap();
+    assert_eq!(loaded[0].1, dropped);
+    let set = graphspn_compiler::map::load_map_set_report(building).unwrap();
+    assert_eq!(set.dropped, vec![dropped]);
 }
 
+/// The authors' relabelling of room `7-2PO-1` applies to Stockholm's maps only: a
+/// room of that id in another building keeps its label.
 #[test]
-fn room_relabel_makes_1po() {
+fn room_relabel_makes_1po_in_stockholm_only() {
     let lines = [good_line(0, "CR", &[1]), good_line(1, "2PO", &[0])];
-    let (_tmp, dir) = seq(&lines.join("\n"), Some("0 7-CR-1\n1 7-2PO-1\n"));
+    let rooms = "0 7-CR-1\n1 7-2PO-1\n";
+    let (_tmp, dir) = seq_in("Stockholm", &lines.join("\n"), Some(rooms));
     let m = cold::load_sequence(&dir).unwrap();
-    assert_eq!(m.place(1).class, Some(2));
+    assert_eq!(m.place(1).class, Some(2), "1PO");
+    let (_tmp, dir) = seq_in("MyLab", &lines.join("\n"), Some(rooms));
+    let m = cold::load_sequence(&dir).unwrap();
+    assert_eq!(m.place(1).class, Some(3), "2PO kept");
+}
+
+/// A building's sub-folder that is not a sequence (no `nodes.dat`) is an error naming
+/// it, as among a set of maps (it was skipped: `train` reported fewer maps without a
+/// word); hidden folders and files are not read. `buildings_in` lists a data
+/// folder's buildings, whatever their names.
+#[test]
+fn a_building_folder_without_nodes_dat_is_an_error_naming_it() {
+    let lines = three_nodes();
+    let (tmp, dir) = seq_in("MyLab", &lines.join("\n"), Some(ROOMS3));
+    let building = dir.parent().unwrap();
+    std::fs::create_dir(building.join(".cache")).unwrap();
+    std::fs::write(building.join("notes.txt"), "not a map").unwrap();
+    assert_eq!(cold::load_building(tmp.path(), "MyLab").unwrap().len(), 1);
+    assert_eq!(cold::buildings_in(tmp.path()).unwrap(), vec!["MyLab"]);
+    std::fs::create_dir(building.join("seq9")).unwrap();
+    std::fs::write(building.join("seq9/rooms.dat"), ROOMS3).unwrap();
+    let err = cold::load_building(tmp.path(), "MyLab").unwrap_err();
+    assert!(matches!(err, MapError::NotASequence { .. }), "{err}");
+    assert!(err.to_string().contains("seq9"), "{err}");
 }
 
 #[test]
@@ -155,7 +201,7 @@ fn malformed_numbers() {
         "{s}"
     );
     assert!(
-        s.contains("nodes.dat:3") && s.contains("column 2") && s.contains("1.5x"),
+        s.contains("nodes.dat:3") && s.contains("column 2: \"1.5x\" is not a finite number"),
         "{s}"
     );
     let mut l = three_nodes();
@@ -172,6 +218,15 @@ fn malformed_numbers() {
         ),
         "{s}"
     );
+    assert!(
+        s.contains("column 1: \"2\" is not 0 or 1 (the placeholder flag)"),
+        "{s}"
+    );
+    // A neighbour is an integer id.
+    let mut l = three_nodes();
+    l[0] = good_line(0, "CR", &[1]).replacen(" 1 0.5 0", " 1.0 0.5 0", 1);
+    let (_, s) = load_err(&l.join("\n"), Some(ROOMS3));
+    assert!(s.contains("column 10: \"1.0\" is not an integer"), "{s}");
     let mut l = three_nodes();
     l[0] = l[0].replacen("0 0 ", "abc 0 ", 1);
     let (e, _) = load_err(&l.join("\n"), Some(ROOMS3));
@@ -256,6 +311,10 @@ fn duplicate_ids() {
 fn room_problems() {
     let (e, s) = load_err(&three_nodes().join("\n"), Some("0 1-CR-1\n1 1-DW-1\n"));
     assert!(matches!(e, MapError::MissingRoom { node: 2, .. }), "{s}");
+    assert!(
+        s.contains("no room for node 2") && s.contains("nodes.dat:3"),
+        "{s}"
+    );
     let (e, s) = load_err(
         &three_nodes().join("\n"),
         Some("0 1-CR-1\n1 1-KT-1\n2 1-1PO-2\n"),
@@ -354,9 +413,9 @@ fn a_folder_among_the_maps_without_nodes_dat_is_an_error_naming_it() {
     std::fs::copy(&floor, dir.path().join("a.json")).unwrap();
     std::fs::write(dir.path().join("notes.txt"), "not a map").unwrap();
     std::fs::create_dir(dir.path().join(".cache")).unwrap();
-    let (maps, not_read) = graphspn_compiler::map::load_map_set_report(dir.path()).unwrap();
-    assert_eq!(maps.len(), 1);
-    assert_eq!(not_read, vec![dir.path().join("notes.txt")]);
+    let set = graphspn_compiler::map::load_map_set_report(dir.path()).unwrap();
+    assert_eq!(set.maps.len(), 1);
+    assert_eq!(set.not_read, vec![dir.path().join("notes.txt")]);
     std::fs::create_dir(dir.path().join("b_sequence")).unwrap();
     let err = graphspn_compiler::map::load_map_set(dir.path()).unwrap_err();
     assert!(matches!(err, MapError::NotASequence { .. }), "{err}");

@@ -13,7 +13,7 @@ use graphspn_compiler::experiments::sets::{Evaluation, MapSet, NameRequest, SetR
 use graphspn_compiler::map::{TopoMap, cold, load_map_set_report, map_set_name, shown_class_names};
 
 use super::flag_checks::flag_domain;
-use super::map_input::require_data_dir;
+use super::map_input::{require_data_dir, warn_dropped};
 use super::output::{Outputs, write_folder};
 use super::reproduce::{ProtocolOptions, RunOptions, read_settings};
 
@@ -154,8 +154,13 @@ struct Source {
 /// Loads the map set at `path`; `flag` and `given` name it in errors and warnings.
 fn load_set(flag: &str, given: &str, path: &Path) -> Result<Vec<TopoMap>> {
     // A sub-folder that is not a COLD sequence is an error naming it (it was
-    // skipped without a word); files that are not maps are named in a warning.
-    let (maps, not_read) = load_map_set_report(path).with_context(|| format!("{flag} {given}"))?;
+    // skipped without a word); files that are not maps, and maps that lost places to
+    // disconnection, are named in warnings.
+    let set = load_map_set_report(path).with_context(|| format!("{flag} {given}"))?;
+    for (map, dropped) in set.maps.iter().zip(&set.dropped) {
+        warn_dropped(&format!("{flag} {given}: map {}", map.name), map, dropped);
+    }
+    let not_read = set.not_read;
     if !not_read.is_empty() {
         let names: Vec<String> = not_read
             .iter()
@@ -169,7 +174,7 @@ fn load_set(flag: &str, given: &str, path: &Path) -> Result<Vec<TopoMap>> {
             if not_read.len() > 10 { ", …" } else { "" }
         );
     }
-    Ok(maps)
+    Ok(set.maps)
 }
 
 /// Runs `graphspn evaluate`.

@@ -29,16 +29,36 @@ pub fn require_data_dir(arg: Option<PathBuf>) -> Result<PathBuf> {
     Ok(d)
 }
 
-/// Checks building names (known, no repeats) given with `flag`.
+/// Checks building names (known, no repeats) given with `flag`: COLD's three
+/// ([`cold::BUILDINGS`]: the paper's protocol and its published figures need them).
 pub fn check_buildings(flag: &str, buildings: &[String]) -> Result<()> {
+    check_building_names(flag, buildings, &cold::BUILDINGS, "choose among")
+}
+
+/// Checks building names (no repeats) given with `flag` against the buildings of the
+/// data folder `data` (its sub-folders: COLD's three, or a user's own).
+pub fn check_data_buildings(flag: &str, buildings: &[String], data: &Path) -> Result<()> {
+    let present = cold::buildings_in(data)?;
+    let present: Vec<&str> = present.iter().map(String::as_str).collect();
+    let known = format!("the data folder {} holds", data.display());
+    check_building_names(flag, buildings, &present, &known)
+}
+
+/// Building names against `known`; `listed` introduces the list in the error.
+fn check_building_names(
+    flag: &str,
+    buildings: &[String],
+    known: &[&str],
+    listed: &str,
+) -> Result<()> {
     if buildings.is_empty() {
         bail!("{flag}: give at least one building");
     }
     for (i, b) in buildings.iter().enumerate() {
-        if !cold::BUILDINGS.contains(&b.as_str()) {
+        if !known.contains(&b.as_str()) {
             bail!(
-                "{flag}: unknown building {b:?}: choose among {}",
-                cold::BUILDINGS.join(", ")
+                "{flag}: unknown building {b:?}: {listed} {}",
+                known.join(", ")
             );
         }
         if buildings[..i].contains(b) {
@@ -48,14 +68,34 @@ pub fn check_buildings(flag: &str, buildings: &[String]) -> Result<()> {
     Ok(())
 }
 
-/// All maps of the named COLD buildings, building by building in the order given.
-/// Names must have passed [`check_buildings`].
+/// All maps of the named buildings of the data folder, building by building in the
+/// order given, each map that lost places to disconnection named in a warning
+/// ([`warn_dropped`]). Names must have passed a building check.
 pub fn load_buildings(data: &Path, buildings: &[String]) -> Result<Vec<TopoMap>> {
     let mut maps = Vec::new();
     for b in buildings {
-        maps.extend(cold::load_building(data, b)?);
+        for (map, dropped) in cold::load_building_report(data, b)? {
+            warn_dropped(&data.join(&map.name).display().to_string(), &map, &dropped);
+            maps.push(map);
+        }
     }
     Ok(maps)
+}
+
+/// The one warning about a loaded map that lost places to disconnection (the COLD
+/// loader keeps the largest connected component, `docs/FORMATS.md`): on standard
+/// error, naming the map's source, how many places were dropped and their ids. Places
+/// labelled `UN` or left without an edge are dropped as the authors' filtering says,
+/// without a warning (most COLD maps have some).
+pub fn warn_dropped(source: &str, map: &TopoMap, dropped: &Dropped) {
+    if !dropped.disconnected.is_empty() {
+        eprintln!(
+            "warning: {source}: the map is not connected; {} places outside its largest connected component were dropped (ids {}), {} are kept",
+            dropped.disconnected.len(),
+            id_list(&dropped.disconnected),
+            map.num_places()
+        );
+    }
 }
 
 /// A loaded map and what the COLD filtering dropped from it (nothing for JSON maps).
@@ -115,15 +155,7 @@ pub fn read_map_limited(resolved: &Path, max_places: usize) -> Result<LoadedMap>
             Dropped::default(),
         )
     };
-    if !dropped.disconnected.is_empty() {
-        let total = map.num_places() + dropped.disconnected.len();
-        eprintln!(
-            "warning: {}: the map is not connected; {} of its {total} places are outside the largest connected component and were dropped (ids {})",
-            resolved.display(),
-            dropped.disconnected.len(),
-            id_list(&dropped.disconnected)
-        );
-    }
+    warn_dropped(&resolved.display().to_string(), &map, &dropped);
     Ok(LoadedMap { map, dropped })
 }
 

@@ -15,7 +15,9 @@ use graphspn_compiler::treemix::SpanningTrees;
 use graphspn_compiler::domain;
 
 use super::flag_checks::{check_trees_flag, flag_domain};
-use super::map_input::{data_dir, declare_map, map_fits, read_map, require_data_dir};
+use super::map_input::{
+    data_dir, declare_map, load_buildings, map_fits, read_map, require_data_dir,
+};
 use super::model_input::load_any_model;
 use super::output::{Outputs, write_files, write_stdout};
 
@@ -34,7 +36,9 @@ fn synthetic(flag: &str, places: usize, seed: u64) -> Result<TopoMap> {
   graphspn stats --synthetic 1000 --seed 4"
 )]
 pub struct StatsArgs {
-    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    /// Folder of buildings, each a folder of COLD sequences: every building in it is
+    /// counted (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps with
+    /// Freiburg/, Saarbrucken/, Stockholm/).
     #[arg(long)]
     data: Option<PathBuf>,
     /// Also generate a synthetic floor of this many places (10..=100000).
@@ -55,12 +59,24 @@ pub fn stats(args: StatsArgs) -> Result<()> {
     let mut columns: Vec<(String, MapStats)> = Vec::new();
     let mut all = Vec::new();
     let mut per_building = Vec::new();
-    for b in cold::BUILDINGS {
-        let maps = cold::load_building(&dir, b)?;
-        per_building.push((b.to_string(), MapStats::of_maps(&maps)));
+    let buildings = cold::buildings_in(&dir)?;
+    if buildings.is_empty() {
+        bail!(
+            "--data {}: holds no building (folders of COLD sequences)",
+            dir.display()
+        );
+    }
+    for b in &buildings {
+        let maps = load_buildings(&dir, std::slice::from_ref(b))?;
+        per_building.push((b.clone(), MapStats::of_maps(&maps)));
         all.extend(maps);
     }
-    columns.push(("COLD".into(), MapStats::of_maps(&all)));
+    let pooled = if buildings == cold::BUILDINGS {
+        "COLD"
+    } else {
+        "all"
+    };
+    columns.push((pooled.into(), MapStats::of_maps(&all)));
     columns.extend(per_building);
     if let Some((n, m)) = &syn {
         columns.push((format!("synth {n}"), MapStats::of_map(m)));

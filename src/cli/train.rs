@@ -13,7 +13,7 @@ use graphspn_compiler::template::Template;
 use graphspn_compiler::treemix::{TreeTraining, train_tree_mixture};
 
 use super::flag_checks::flag_error;
-use super::map_input::{check_buildings, load_buildings, require_data_dir};
+use super::map_input::{check_data_buildings, load_buildings, require_data_dir};
 use super::output::{Outputs, write_files};
 
 /// Arguments of `graphspn train`.
@@ -23,13 +23,16 @@ use super::output::{Outputs, write_files};
     after_help = "Examples:
   graphspn train --out model.json
   graphspn train --buildings Freiburg,Saarbrucken,Stockholm --epochs 20 --seed 3 --out model.json --force
-  graphspn train --family tree-mixture --coupling 1 --evidence-exponent 2 --trees 4 --out trees.json"
+  graphspn train --family tree-mixture --coupling 1 --evidence-exponent 2 --trees 4 --out trees.json
+  graphspn train --data my-data --buildings MyLab --out mylab.json   (my-data/MyLab/<sequence>/nodes.dat, rooms.dat)"
 )]
 pub struct TrainArgs {
-    /// Folder holding Freiburg/, Saarbrucken/, Stockholm/ (default: $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
+    /// Folder of buildings, each a folder of COLD sequences: the shipped COLD maps
+    /// (Freiburg/, Saarbrucken/, Stockholm/) or your own in the same layout (default:
+    /// $GRAPHSPN_DATA, else the shipped data/cold-topomaps).
     #[arg(long)]
     data: Option<PathBuf>,
-    /// Buildings to train on, comma-separated, each at most once.
+    /// Buildings to train on (sub-folders of --data), comma-separated, each at most once.
     #[arg(long, value_delimiter = ',', default_value = "Freiburg,Saarbrucken")]
     buildings: Vec<String>,
     /// Output model file (JSON).
@@ -133,8 +136,8 @@ fn parse_mixing(s: &str) -> Result<Mixing, String> {
 
 /// Runs `graphspn train`.
 pub fn run(args: TrainArgs) -> Result<()> {
-    check_buildings("--buildings", &args.buildings)?;
     let data = require_data_dir(args.data)?;
+    check_data_buildings("--buildings", &args.buildings, &data)?;
     let mut outputs = Outputs::new(args.force);
     outputs.input("--data", &data);
     outputs.file("--out", &args.out)?;

@@ -263,9 +263,9 @@ fn report_markdown(
         maps_run(rep, cfg.maps_per_building),
         counted(cfg.rounds, "round"),
         if rep.paper_noise {
-            "**paper-effective** (wrong class drawn among all 10 classes, `--paper-noise`)"
+            "**paper-effective** (wrong class drawn among all the classes, `--paper-noise`)"
         } else {
-            "protocol as written (wrong class drawn among the 9 others)"
+            "protocol as written (wrong class drawn among the other classes)"
         },
         rep.seconds
     );

@@ -46,9 +46,20 @@ pub enum TrainModelError {
         /// What failed.
         source: DecomposeError,
     },
-    /// A template got no training sample at all.
-    #[error("template {0:?} matched nowhere in the training maps: no samples to learn from")]
-    NoSamples(String),
+    /// A template got no training sample at all: its shape occurs in none of the maps.
+    #[error(
+        "template {template:?} ({nodes} places joined by {edges} edges) matched nowhere in the {maps} training map(s): no samples to learn from. A GraphSPN needs every template's shape in its training maps (the star: a place with four neighbours); train on more maps, or a tree mixture (--family tree-mixture), which learns from edges alone"
+    )]
+    NoSamples {
+        /// The template's name.
+        template: String,
+        /// Its places.
+        nodes: usize,
+        /// Its edges.
+        edges: usize,
+        /// Training maps.
+        maps: usize,
+    },
     /// Learning a template SPN failed.
     #[error("learning the SPN of template {template:?}: {source}")]
     Learn {
@@ -179,7 +190,12 @@ pub fn train_model(
             template_samples(maps, template, t, settings)?
         };
         if template.num_nodes > 1 && samples.is_empty() {
-            return Err(TrainModelError::NoSamples(template.name.clone()));
+            return Err(TrainModelError::NoSamples {
+                template: template.name.clone(),
+                nodes: template.num_nodes,
+                edges: template.edges.len(),
+                maps: maps.len(),
+            });
         }
         let seed = derive_seed(settings.seed, t as u64, u64::MAX, 0);
         let (mut spn, report) = learn_template_spn(

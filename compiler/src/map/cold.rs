@@ -60,8 +60,13 @@ pub fn data_dir(arg: Option<&Path>) -> PathBuf {
     }
 }
 
-/// Room relabelled by the authors: `(from, to, new raw label)`.
+/// Room relabelled by the authors: `(from, to, new raw label)`, in building
+/// [`ROOM_RELABEL_BUILDING`] only.
 pub const ROOM_RELABEL: (&str, &str, &str) = ("7-2PO-1", "7-1PO-3", "1PO");
+
+/// The building whose room [`ROOM_RELABEL`] the authors relabelled: a sequence folder
+/// inside a folder of this name (another building's room of that id keeps its label).
+pub const ROOM_RELABEL_BUILDING: &str = "Stockholm";
 
 /// What a raw COLD label means.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,6 +117,7 @@ fn parse_int(path: &Path, line: usize, column: usize, text: &str) -> Result<i64,
         line,
         column,
         text: text.to_string(),
+        expected: "an integer",
     })
 }
 
@@ -123,6 +129,7 @@ fn parse_float(path: &Path, line: usize, column: usize, text: &str) -> Result<f6
             line,
             column,
             text: text.to_string(),
+            expected: "a finite number",
         }),
     }
 }
@@ -171,6 +178,7 @@ fn parse_nodes(path: &Path, max_places: usize) -> Result<BTreeMap<i64, RawNode>,
                     line,
                     column: 1,
                     text: cols[1].to_string(),
+                    expected: "0 or 1 (the placeholder flag)",
                 });
             }
         };
@@ -330,11 +338,17 @@ pub fn load_sequence_limited(
         });
     }
 
+    let relabel_building = dir
+        .parent()
+        .and_then(Path::file_name)
+        .is_some_and(|b| b == ROOM_RELABEL_BUILDING);
     let mut classes_of: BTreeMap<i64, ClassId> = BTreeMap::new();
     for (&id, node) in &nodes {
         let (_, room) = rooms.get(&id).ok_or_else(|| MapError::MissingRoom {
             path: rooms_path.clone(),
             node: id,
+            nodes_path: nodes_path.clone(),
+            nodes_line: node.line,
         })?;
         if room_label(room) != Some(node.raw_label.as_str()) {
             return Err(MapError::RoomLabelMismatch {
@@ -345,7 +359,7 @@ pub fn load_sequence_limited(
                 room: room.clone(),
             });
         }
-        let label = if room == ROOM_RELABEL.0 {
+        let label = if relabel_building && room == ROOM_RELABEL.0 {
             raw_label_class(ROOM_RELABEL.2).unwrap_or(node.label)
         } else {
             node.label
@@ -454,7 +468,10 @@ pub(crate) fn path_names(path: &Path) -> Vec<String> {
     names
 }
 
-/// Sequence folders (those holding a `nodes.dat`) of a building, sorted by name.
+/// Sequence folders of a building, sorted by name. Every sub-folder must be a
+/// sequence (holding `nodes.dat`): one without is an error naming it
+/// ([`MapError::NotASequence`]), not skipped; files and hidden entries (`.name`) are
+/// not read.
 pub fn sequence_dirs(building_dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, MapError> {
     let building_dir = building_dir.as_ref();
     let entries = std::fs::read_dir(building_dir).map_err(|e| MapError::io(building_dir, e))?;
@@ -462,9 +479,16 @@ pub fn sequence_dirs(building_dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, Map
     for entry in entries {
         let entry = entry.map_err(|e| MapError::io(building_dir, e))?;
         let p = entry.path();
-        if p.join("nodes.dat").is_file() {
-            dirs.push(p);
+        let hidden = p
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'));
+        if hidden || !p.is_dir() {
+            continue;
         }
+        if !p.join("nodes.dat").is_file() {
+            return Err(MapError::NotASequence { path: p });
+        }
+        dirs.push(p);
     }
     dirs.sort();
     if dirs.is_empty() {
@@ -477,10 +501,41 @@ pub fn sequence_dirs(building_dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, Map
 
 /// All sequences of one building (`data_dir/<building>/*`), sorted by sequence name.
 pub fn load_building(data_dir: impl AsRef<Path>, building: &str) -> Result<Vec<TopoMap>, MapError> {
+    Ok(load_building_report(data_dir, building)?
+        .into_iter()
+        .map(|(m, _)| m)
+        .collect())
+}
+
+/// [`load_building`], with what the filtering dropped from each map.
+pub fn load_building_report(
+    data_dir: impl AsRef<Path>,
+    building: &str,
+) -> Result<Vec<(TopoMap, Dropped)>, MapError> {
     sequence_dirs(data_dir.as_ref().join(building))?
         .iter()
-        .map(load_sequence)
+        .map(load_sequence_report)
         .collect()
+}
+
+/// The buildings of a data folder: its sub-folders (not hidden), sorted by name —
+/// [`BUILDINGS`] for the shipped data. Each must be a building of sequences
+/// ([`sequence_dirs`] says when one is not).
+pub fn buildings_in(data_dir: impl AsRef<Path>) -> Result<Vec<String>, MapError> {
+    let data_dir = data_dir.as_ref();
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(data_dir).map_err(|e| MapError::io(data_dir, e))? {
+        let p = entry.map_err(|e| MapError::io(data_dir, e))?.path();
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        if p.is_dir() && !name.starts_with('.') {
+            names.push(name);
+        }
+    }
+    names.sort();
+    Ok(names)
 }
 
 /// All sequences of the three buildings, in [`BUILDINGS`] order, each building

@@ -35,8 +35,8 @@ pub enum MapError {
         /// Columns present.
         found: usize,
     },
-    /// A column that must hold a number does not.
-    #[error("{}:{line}: column {column}: malformed number {text:?}", path.display())]
+    /// A column that must hold a number does not (or not one of the kind it needs).
+    #[error("{}:{line}: column {column}: {text:?} is not {expected}", path.display())]
     BadNumber {
         /// The file.
         path: PathBuf,
@@ -46,6 +46,8 @@ pub enum MapError {
         column: usize,
         /// The offending text.
         text: String,
+        /// What the column holds, e.g. `an integer`, `0 or 1 (the placeholder flag)`.
+        expected: &'static str,
     },
     /// A raw place label that the class table does not know.
     #[error("{}:{line}: column {column}: unknown raw label {label:?}", path.display())]
@@ -104,12 +106,16 @@ pub enum MapError {
         room: String,
     },
     /// `rooms.dat` has no entry for a node of `nodes.dat`.
-    #[error("{}: no room for node {node}", path.display())]
+    #[error("{}: no room for node {node} ({}:{nodes_line}); every node needs a `node_id room_id` line", path.display(), nodes_path.display())]
     MissingRoom {
         /// The `rooms.dat` file.
         path: PathBuf,
         /// The node id.
         node: i64,
+        /// The `nodes.dat` file.
+        nodes_path: PathBuf,
+        /// The node's line in `nodes.dat` (1-based).
+        nodes_line: usize,
     },
     /// `rooms.dat` names a node that `nodes.dat` does not have.
     #[error("{}:{line}: node {node} is not in nodes.dat", path.display())]

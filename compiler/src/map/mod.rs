@@ -17,7 +17,7 @@ pub mod synthetic;
 
 pub use error::{MapError, MapFitError};
 pub use json::MAP_FORMAT;
-pub use set::{load_map_set, load_map_set_report, map_set_name};
+pub use set::{MapSetReport, load_map_set, load_map_set_report, map_set_name};
 
 /// Index of a class in a [`ClassSet`].
 pub type ClassId = u16;

@@ -11,23 +11,38 @@
 
 use std::path::{Path, PathBuf};
 
+use super::cold::Dropped;
 use super::{MapError, TopoMap, cold};
 
 /// The maps a path holds (see the module docs), in a fixed order. Errors name the
 /// path: missing, unreadable, a malformed map, a sub-folder that is not a COLD
 /// sequence, two maps of the same name, or a folder with no map at all.
 pub fn load_map_set(path: impl AsRef<Path>) -> Result<Vec<TopoMap>, MapError> {
-    load_map_set_report(path).map(|(maps, _)| maps)
+    load_map_set_report(path).map(|r| r.maps)
 }
 
-/// [`load_map_set`], also returning the files of the folder that were not read (not
-/// `*.json`, not hidden), sorted.
-pub fn load_map_set_report(
-    path: impl AsRef<Path>,
-) -> Result<(Vec<TopoMap>, Vec<PathBuf>), MapError> {
+/// What [`load_map_set_report`] read.
+#[derive(Clone, Debug, Default)]
+pub struct MapSetReport {
+    /// The maps, in the set's order.
+    pub maps: Vec<TopoMap>,
+    /// What the COLD filtering dropped from each map (same order; nothing for a JSON
+    /// map), so a caller can warn about a map that lost places.
+    pub dropped: Vec<Dropped>,
+    /// The files of the folder that were not read (not `*.json`, not hidden), sorted.
+    pub not_read: Vec<PathBuf>,
+}
+
+/// [`load_map_set`], also returning what was dropped from each map and the files of
+/// the folder that were not read.
+pub fn load_map_set_report(path: impl AsRef<Path>) -> Result<MapSetReport, MapError> {
     let path = path.as_ref();
     if path.is_file() {
-        return Ok((vec![TopoMap::load(path)?], Vec::new()));
+        return Ok(MapSetReport {
+            maps: vec![TopoMap::load(path)?],
+            dropped: vec![Dropped::default()],
+            not_read: Vec::new(),
+        });
     }
     if !path.is_dir() {
         return Err(MapError::MissingFile {
@@ -35,7 +50,12 @@ pub fn load_map_set_report(
         });
     }
     if path.join("nodes.dat").is_file() {
-        return Ok((vec![cold::load_sequence(path)?], Vec::new()));
+        let (map, dropped) = cold::load_sequence_report(path)?;
+        return Ok(MapSetReport {
+            maps: vec![map],
+            dropped: vec![dropped],
+            not_read: Vec::new(),
+        });
     }
     let mut entries: Vec<PathBuf> = std::fs::read_dir(path)
         .map_err(|e| MapError::io(path, e))?
@@ -43,6 +63,7 @@ pub fn load_map_set_report(
         .collect::<Result<_, _>>()?;
     entries.sort();
     let mut maps: Vec<TopoMap> = Vec::new();
+    let mut dropped: Vec<Dropped> = Vec::new();
     let mut sources: Vec<PathBuf> = Vec::new();
     let mut ignored = Vec::new();
     for p in entries {
@@ -56,9 +77,12 @@ pub fn load_map_set_report(
             if !p.join("nodes.dat").is_file() {
                 return Err(MapError::NotASequence { path: p });
             }
-            maps.push(cold::load_sequence(&p)?);
+            let (map, d) = cold::load_sequence_report(&p)?;
+            maps.push(map);
+            dropped.push(d);
         } else if p.extension().is_some_and(|x| x == "json") {
             maps.push(TopoMap::load(&p)?);
+            dropped.push(Dropped::default());
         } else {
             ignored.push(p);
             continue;
@@ -78,7 +102,11 @@ pub fn load_map_set_report(
             path: path.to_path_buf(),
         });
     }
-    Ok((maps, ignored))
+    Ok(MapSetReport {
+        maps,
+        dropped,
+        not_read: ignored,
+    })
 }
 
 /// The name a map set is reported under: the file stem or the folder name (of the
