@@ -215,6 +215,8 @@ pub fn run(args: TrainArgs) -> Result<()> {
         }
     };
     let maps = load_buildings(&data, &args.buildings)?;
+    // Where the maps came from (the model file names them `building/sequence`).
+    let source = format!("{} in {}", args.buildings.join(", "), data.display());
     let settings = match settings {
         Plan::Graphspn(s) => s,
         Plan::Trees(t) => {
@@ -232,9 +234,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
             let text = model.to_json()?;
             write_files(&[(&args.out, text.as_bytes())])?;
             eprintln!(
-                "trained a tree mixture ({}) on {} maps in {:.2} s; wrote {}",
+                "trained a tree mixture ({}) on {} maps of {} in {:.2} s; wrote {}",
                 t.label(),
                 maps.len(),
+                source,
                 start.elapsed().as_secs_f64(),
                 args.out.display()
             );
@@ -262,8 +265,9 @@ pub fn run(args: TrainArgs) -> Result<()> {
     let text = model.to_json()?;
     write_files(&[(&args.out, text.as_bytes())])?;
     eprintln!(
-        "trained on {} maps in {:.2} s; wrote {}",
+        "trained on {} maps of {} in {:.2} s; wrote {}",
         maps.len(),
+        source,
         elapsed.as_secs_f64(),
         args.out.display()
     );
