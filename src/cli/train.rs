@@ -137,10 +137,10 @@ fn parse_mixing(s: &str) -> Result<Mixing, String> {
 /// Runs `graphspn train`.
 pub fn run(args: TrainArgs) -> Result<()> {
     let data = require_data_dir(args.data)?;
-    check_data_buildings("--buildings", &args.buildings, &data)?;
     let mut outputs = Outputs::new(args.force);
     outputs.input("--data", &data);
     outputs.file("--out", &args.out)?;
+    check_data_buildings("--buildings", &args.buildings, &data)?;
     let tree_flags = [
         ("--potential", args.potential.is_some()),
         ("--coupling", args.coupling.is_some()),
