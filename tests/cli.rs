@@ -504,8 +504,8 @@ fn a_tree_mixture_trains_infers_and_renders() {
         79,
         "a spanning tree of 80 places"
     );
-    // The trees `infer --trees 5` mixes can be drawn and exported too: the same seed
-    // and count draw the same trees in every command.
+    // `render` and `instance` take `--trees` as `infer` does (each draws the trees
+    // with `SpanningTrees::covering(map, count, seed)`).
     run_ok(&mut render(
         &demo("floor.json"),
         &["--trees", "5", "--tree", "5"],

@@ -125,6 +125,43 @@ fn room_relabel_makes_1po_in_stockholm_only() {
     assert_eq!(m.place(1).class, Some(3), "2PO kept");
 }
 
+/// However a Stockholm sequence's path is written (relative to its building, or `.`
+/// from inside it), the building is read from the path made absolute: the relabelling
+/// applies alike. (A process-wide current folder: run in a child process.)
+#[test]
+fn room_relabel_reads_the_building_of_a_relative_path() {
+    if std::env::var_os("GRAPHSPN_RELABEL_CHILD").is_some() {
+        let dir = std::env::current_dir().unwrap();
+        let m = cold::load_sequence(".").unwrap();
+        assert_eq!(m.place(1).class, Some(2), "1PO through .");
+        std::env::set_current_dir(dir.parent().unwrap()).unwrap();
+        let m = cold::load_sequence("seq").unwrap();
+        assert_eq!(m.place(1).class, Some(2), "1PO through seq");
+        return;
+    }
+    let lines = [good_line(0, "CR", &[1]), good_line(1, "2PO", &[0])];
+    let (_tmp, dir) = seq_in(
+        "Stockholm",
+        &lines.join("\n"),
+        Some("0 7-CR-1\n1 7-2PO-1\n"),
+    );
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "room_relabel_reads_the_building_of_a_relative_path",
+            "--exact",
+            "--nocapture",
+        ])
+        .env("GRAPHSPN_RELABEL_CHILD", "1")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+}
+
 /// A building's sub-folder that is not a sequence (no `nodes.dat`) is an error naming
 /// it, as among a set of maps (it was skipped: `train` reported fewer maps without a
 /// word); hidden folders and files are not read. `buildings_in` lists a data

@@ -13,7 +13,7 @@ use graphspn_compiler::experiments::sets::{Evaluation, MapSet, NameRequest, SetR
 use graphspn_compiler::map::{TopoMap, cold, load_map_set_report, map_set_name, shown_class_names};
 
 use super::flag_checks::flag_domain;
-use super::map_input::{require_data_dir, warn_dropped};
+use super::map_input::{load_buildings, require_data_dir, warn_dropped};
 use super::output::{Outputs, write_folder};
 use super::reproduce::{ProtocolOptions, RunOptions, read_settings};
 
@@ -325,7 +325,7 @@ pub fn run_cmd(args: EvaluateArgs) -> Result<()> {
     let mut loaded: Vec<Vec<TopoMap>> = Vec::new();
     for set in &sets {
         loaded.push(match (&data, set.bundled) {
-            (Some(d), true) => cold::load_building(d, &set.given)
+            (Some(d), true) => load_buildings(d, std::slice::from_ref(&set.given))
                 .with_context(|| format!("--data {}", d.display()))?,
             _ => load_set(set.flag, &set.given, &set.path)?,
         });

@@ -22,7 +22,7 @@ pub fn require_data_dir(arg: Option<PathBuf>) -> Result<PathBuf> {
     let d = data_dir(arg);
     if !d.is_dir() {
         bail!(
-            "--data {}: not a folder (the COLD maps folder holding Freiburg/, Saarbrucken/, Stockholm/)",
+            "--data {}: not a folder (a folder of buildings, each a folder of COLD sequences: the shipped COLD maps hold Freiburg/, Saarbrucken/, Stockholm/)",
             d.display()
         );
     }

@@ -147,10 +147,12 @@ pub fn render(args: RenderArgs) -> Result<()> {
         outputs.input_file("--model", p)?;
     }
     outputs.file("--out", &args.out)?;
-    check_trees_flag(args.trees, false)?;
     let model = match &args.model {
         Some(p) => match load_any_model(p)? {
-            AnyModel::TreeMixture(t) => Some(t),
+            AnyModel::TreeMixture(t) => {
+                check_trees_flag(args.trees, false)?;
+                Some(t)
+            }
             AnyModel::Graphspn(_) => bail!(
                 "--model {}: holds a GraphSPN; render draws the spanning trees of a tree mixture (infer --svg draws a GraphSPN's marginals)",
                 p.display()

@@ -46,9 +46,10 @@ pub enum TrainModelError {
         /// What failed.
         source: DecomposeError,
     },
-    /// A template got no training sample at all: its shape occurs in none of the maps.
+    /// A template got no training sample at all: its shape occurs in none of the maps,
+    /// or only where some place of the match has no class.
     #[error(
-        "template {template:?} ({nodes} places joined by {edges} edges) matched nowhere in the {maps} training map(s): no samples to learn from. A GraphSPN needs every template's shape in its training maps (the star: a place with four neighbours); train on more maps, or a tree mixture (--family tree-mixture), which learns from edges alone"
+        "template {template:?} ({nodes} places joined by {edges} edges) matched nowhere in the {maps} training map(s) with every place labelled: no samples to learn from. A GraphSPN needs every template's shape among the labelled places of its training maps; train on more maps, or a tree mixture (--family tree-mixture), which learns from edges alone"
     )]
     NoSamples {
         /// The template's name.

@@ -169,9 +169,9 @@ fn parse_nodes(path: &Path, max_places: usize) -> Result<BTreeMap<i64, RawNode>,
                 id,
             });
         }
-        let placeholder = match parse_int(path, line, 1, cols[1])? {
-            0 => false,
-            1 => true,
+        let placeholder = match cols[1].parse::<i64>() {
+            Ok(0) => false,
+            Ok(1) => true,
             _ => {
                 return Err(MapError::BadNumber {
                     path: path.to_path_buf(),
@@ -338,10 +338,10 @@ pub fn load_sequence_limited(
         });
     }
 
-    let relabel_building = dir
-        .parent()
-        .and_then(Path::file_name)
-        .is_some_and(|b| b == ROOM_RELABEL_BUILDING);
+    // The building is the folder above the sequence, read as `sequence_name` reads it
+    // (`.` and relative paths made absolute), however the path was written.
+    let names = path_names(dir);
+    let relabel_building = names.len() >= 2 && names[names.len() - 2] == ROOM_RELABEL_BUILDING;
     let mut classes_of: BTreeMap<i64, ClassId> = BTreeMap::new();
     for (&id, node) in &nodes {
         let (_, room) = rooms.get(&id).ok_or_else(|| MapError::MissingRoom {

@@ -163,7 +163,7 @@ pub enum MapError {
         path: PathBuf,
     },
     /// A sub-folder of a folder of maps that is not a COLD sequence.
-    #[error("{}: not a map: every folder among the maps must be a COLD sequence holding nodes.dat and rooms.dat (move it out, or name the maps one by one)", path.display())]
+    #[error("{}: not a map: every folder among the maps (or of a building) must be a COLD sequence holding nodes.dat and rooms.dat; move it out", path.display())]
     NotASequence {
         /// The sub-folder.
         path: PathBuf,
