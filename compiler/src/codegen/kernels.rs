@@ -298,6 +298,26 @@ mod tests {
         assert!(plan(&spn, 2).is_none());
     }
 
+    /// A segment is planned up to `MAX_SEGMENT` weights (sums × tuples) and refused
+    /// past it: `m` sums over all 1,024 classes of one variable hold `m · 1,024`
+    /// weights, exactly `MAX_SEGMENT` at `m = 1,024`.
+    #[test]
+    fn segments_are_planned_up_to_max_segment_weights() {
+        const C: u32 = 1024;
+        let plan_of = |m: usize| {
+            let mut b = crate::spn::SpnBuilder::new(vec![C]);
+            let leaves: Vec<NodeId> = (0..C).map(|c| b.add_leaf(0, c)).collect();
+            let sums: Vec<NodeId> = (0..m)
+                .map(|_| b.add_sum(leaves.clone(), vec![1.0 / f64::from(C); C as usize]))
+                .collect();
+            let root = b.add_sum(sums, vec![1.0 / m as f64; m]);
+            plan(&b.finish_normalised(root).unwrap(), C as usize)
+        };
+        assert_eq!(MAX_SEGMENT, 1024 * 1024);
+        assert!(plan_of(1024).is_some(), "exactly MAX_SEGMENT weights");
+        assert!(plan_of(1025).is_none(), "past MAX_SEGMENT");
+    }
+
     /// A sum whose child is a sum below a product is planned: every sum of a valid SPN
     /// is reachable, the sum below the product's sum included (the root mixes
     /// `S1 × Y1`, where `S1` is a one-child sum over `S2`, the sum over `Y0`'s leaves).
