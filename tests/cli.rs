@@ -525,6 +525,18 @@ fn a_tree_mixture_trains_infers_and_renders() {
     );
     let exported: serde_json::Value = serde_json::from_str(&exported).unwrap();
     assert_eq!(exported["trees"].as_array().unwrap().len(), 5);
+    // Those are the trees `SpanningTrees::covering(map, 5, seed 0)` draws, as parent
+    // and child place ids.
+    let map = graphspn::map::TopoMap::load(demo("floor.json")).unwrap();
+    let drawn = graphspn::treemix::SpanningTrees::covering(&map, 5, 0).unwrap();
+    for (k, forest) in drawn.forests.iter().enumerate() {
+        let ids: Vec<[u32; 2]> = forest
+            .edges()
+            .into_iter()
+            .map(|(p, c)| [map.place(p as usize).id, map.place(c as usize).id])
+            .collect();
+        assert_eq!(exported["trees"][k], serde_json::json!(ids), "tree {k}");
+    }
     // A map whose classes are not the model's is refused by render as by infer.
     let other = dir.path().join("other.json");
     std::fs::write(
