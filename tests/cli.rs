@@ -683,6 +683,20 @@ fn train_and_stats_take_a_building_of_your_own() {
         err.contains("seq2: the map is not connected; 2 places outside its largest connected component were dropped (ids 9001, 9002)"),
         "{err}"
     );
+    // `infer` lists what the map lost, by reason (Freiburg seq1_cloudy1's own `UN`
+    // and edgeless nodes, and the two places cut off).
+    let out = run_ok(
+        bin()
+            .args(["infer", "--model"])
+            .arg(&model)
+            .arg("--map")
+            .arg(&seq2),
+    );
+    let out: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(
+        out["dropped"],
+        serde_json::json!({"unknown": [7, 8, 28, 55], "isolated": [47], "disconnected": [9001, 9002]})
+    );
     std::fs::create_dir(dir.path().join("my-data/MyLab/notes")).unwrap();
     let err = run_refused(&mut train("MyLab"));
     assert!(err.contains("notes: not a map"), "{err}");

@@ -122,10 +122,21 @@ struct MpeOut<'a> {
     log_probability: f64,
 }
 
+/// Places of a COLD map that its loading dropped, by reason (ids ascending).
+#[derive(Serialize)]
+struct DroppedOut<'a> {
+    unknown: &'a [u32],
+    isolated: &'a [u32],
+    disconnected: &'a [u32],
+}
+
 /// `infer`'s result (`docs/FORMATS.md`).
 #[derive(Serialize)]
 struct InferOut<'a> {
     classes: &'a [String],
+    /// What the COLD filtering dropped from the map; none when nothing was dropped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    dropped: Option<DroppedOut<'a>>,
     format: u32,
     log_likelihood: f64,
     map: &'a str,
@@ -319,8 +330,16 @@ pub fn run(args: InferArgs) -> Result<()> {
         log_max_product: mpe.log_max_product,
         log_probability: mpe.log_probability,
     });
+    let d = &loaded.dropped;
+    let nothing_dropped =
+        d.unknown.is_empty() && d.isolated.is_empty() && d.disconnected.is_empty();
     let doc = InferOut {
         classes: names,
+        dropped: (!nothing_dropped).then_some(DroppedOut {
+            unknown: &d.unknown,
+            isolated: &d.isolated,
+            disconnected: &d.disconnected,
+        }),
         format: 1,
         log_likelihood: m.log_likelihood,
         map: &map.name,
