@@ -468,6 +468,12 @@ pub(crate) fn path_names(path: &Path) -> Vec<String> {
     names
 }
 
+/// Whether `path` names a hidden entry (`.name`), which folder scans skip.
+pub(crate) fn is_hidden(path: &Path) -> bool {
+    path.file_name()
+        .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+}
+
 /// Sequence folders of a building, sorted by name. Every sub-folder must be a
 /// sequence (holding `nodes.dat`): one without is an error naming it
 /// ([`MapError::NotASequence`]), not skipped; files and hidden entries (`.name`) are
@@ -479,10 +485,7 @@ pub fn sequence_dirs(building_dir: impl AsRef<Path>) -> Result<Vec<PathBuf>, Map
     for entry in entries {
         let entry = entry.map_err(|e| MapError::io(building_dir, e))?;
         let p = entry.path();
-        let hidden = p
-            .file_name()
-            .is_some_and(|n| n.to_string_lossy().starts_with('.'));
-        if hidden || !p.is_dir() {
+        if is_hidden(&p) || !p.is_dir() {
             continue;
         }
         if !p.join("nodes.dat").is_file() {
@@ -530,7 +533,7 @@ pub fn buildings_in(data_dir: impl AsRef<Path>) -> Result<Vec<String>, MapError>
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        if p.is_dir() && !name.starts_with('.') {
+        if p.is_dir() && !is_hidden(&p) {
             names.push(name);
         }
     }

@@ -67,10 +67,7 @@ pub fn load_map_set_report(path: impl AsRef<Path>) -> Result<MapSetReport, MapEr
     let mut sources: Vec<PathBuf> = Vec::new();
     let mut ignored = Vec::new();
     for p in entries {
-        let hidden = p
-            .file_name()
-            .is_some_and(|n| n.to_string_lossy().starts_with('.'));
-        if hidden {
+        if cold::is_hidden(&p) {
             continue;
         }
         if p.is_dir() {
